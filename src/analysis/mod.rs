@@ -1,0 +1,8 @@
+//! Offline analysis stages, one file per method. Everything here runs once, at bake time.
+
+pub mod gauss;
+pub mod level;
+pub mod missing;
+pub mod periodic;
+pub mod resample;
+pub mod rpn;

@@ -1,0 +1,117 @@
+//! The one error type of the library.
+//!
+//! Variants say whose fault it was (as image-rs does): a broken or unreadable file
+//! ([`Error::Io`], [`Error::Decode`], [`Error::BadBank`]), a parameter out of range
+//! ([`Error::InvalidParameter`]), data the method cannot use ([`Error::MissingData`],
+//! [`Error::TooSmall`]), a request over a size limit ([`Error::Limits`]) or a format
+//! feature we do not read ([`Error::Unsupported`]). Every message is one line naming
+//! what is wrong and what is expected.
+
+use std::path::Path;
+
+/// Result with the library's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in surftile.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The operating system refused a read or write.
+    #[error("{what}: {source}")]
+    Io {
+        /// The file (or stream) concerned.
+        what: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A file could be read but its content is not a valid image of its format.
+    #[error("{what}: {message}")]
+    Decode {
+        /// The file concerned.
+        what: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A bank file failed validation (magic, version, sizes, checksum, values).
+    #[error("bank {what}: {message}")]
+    BadBank {
+        /// The bank file concerned.
+        what: String,
+        /// What failed.
+        message: String,
+    },
+    /// A parameter is outside the range the operation accepts.
+    #[error("invalid {name} = {value}: expected {expected}")]
+    InvalidParameter {
+        /// Parameter name, as the CLI flag or builder method calls it.
+        name: String,
+        /// The value given.
+        value: String,
+        /// What would have been accepted.
+        expected: String,
+    },
+    /// The exemplar has undefined (NaN) points and filling was not requested.
+    #[error(
+        "{what}: {count} of {total} height points are missing (NaN); pass --fill-missing to fill them smoothly before analysis"
+    )]
+    MissingData {
+        /// The file concerned.
+        what: String,
+        /// Number of NaN points.
+        count: usize,
+        /// Number of points in the map.
+        total: usize,
+    },
+    /// The input is too small for the operation.
+    #[error("{what}: {message}")]
+    TooSmall {
+        /// The input concerned.
+        what: String,
+        /// What size was found and what is needed.
+        message: String,
+    },
+    /// A request exceeds a size limit (memory, dimensions).
+    #[error("too large: {0}")]
+    Limits(String),
+    /// A format feature that surftile does not read or write.
+    #[error("unsupported: {0}")]
+    Unsupported(String),
+}
+
+impl Error {
+    /// An I/O error on the given path.
+    pub fn io(path: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            what: path.display().to_string(),
+            source,
+        }
+    }
+
+    /// A decoding error on the given file.
+    pub fn decode(what: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Decode {
+            what: what.into(),
+            message: message.into(),
+        }
+    }
+
+    /// A parameter error.
+    pub fn param(
+        name: impl Into<String>,
+        value: impl std::fmt::Display,
+        expected: impl Into<String>,
+    ) -> Self {
+        Error::InvalidParameter {
+            name: name.into(),
+            value: value.to_string(),
+            expected: expected.into(),
+        }
+    }
+
+    /// A bank validation error.
+    pub fn bank(what: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::BadBank {
+            what: what.into(),
+            message: message.into(),
+        }
+    }
+}

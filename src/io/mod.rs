@@ -1,0 +1,210 @@
+//! Exemplar and output formats.
+//!
+//! Read: PNG 8/16-bit (grey, grey+alpha, RGB, RGBA; alpha is dropped), TIFF (8/16-bit
+//! integer, 32/64-bit float; grey or RGB), NumPy `.npy` (f32, f64, u8, u16, i16, i32; C
+//! order; H×W or H×W×C), raw little-endian f32 with a given shape.
+//!
+//! Write: 16-bit PNG (the height range is stored in a `surftile` text chunk so heights
+//! can be recovered), 32-bit float TIFF (metadata in ImageDescription) and `.npy`
+//! (float32). The pixel spacing (µm per pixel) travels in the PNG and TIFF metadata; for
+//! `.npy` and raw files it comes from the caller (the CLI's `--spacing`).
+//!
+//! Every write goes to a temporary file beside the target and is renamed into place
+//! only when complete, so a failed write never leaves a half-written output.
+
+mod npy;
+mod png;
+mod raw;
+mod tiff;
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+pub use self::png::write_png8;
+
+/// A decoded image and what its file said about it.
+#[derive(Clone, Debug)]
+pub struct ImageFile {
+    /// The samples.
+    pub raster: Raster,
+    /// Pixel spacing in µm per pixel, when the file records it.
+    pub spacing_um: Option<f64>,
+}
+
+/// Options for reading; only raw files need any.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ReadOptions {
+    /// Shape of a raw f32 file: (width, height, channels).
+    pub raw_shape: Option<(usize, usize, usize)>,
+}
+
+/// The metadata surftile writes beside heights in PNG and TIFF files.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct HeightMeta {
+    /// Height mapped to grey level 0 (PNG only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_min: Option<f64>,
+    /// Height mapped to the largest grey level (PNG only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_max: Option<f64>,
+    /// Pixel spacing in µm per pixel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing_um: Option<f64>,
+}
+
+/// Image formats, chosen by file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// `.png`
+    Png,
+    /// `.tif`, `.tiff`
+    Tiff,
+    /// `.npy`
+    Npy,
+    /// `.raw`, `.f32`, `.bin`: little-endian f32
+    Raw,
+}
+
+impl Format {
+    /// The format of `path` by its extension.
+    pub fn from_path(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "png" => Ok(Format::Png),
+            "tif" | "tiff" => Ok(Format::Tiff),
+            "npy" => Ok(Format::Npy),
+            "raw" | "f32" | "bin" => Ok(Format::Raw),
+            _ => Err(Error::Unsupported(format!(
+                "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy or .raw/.f32",
+                path.display()
+            ))),
+        }
+    }
+}
+
+/// Reads an image file, choosing the decoder by extension.
+pub fn read_image(path: &Path, options: &ReadOptions) -> Result<ImageFile> {
+    let format = Format::from_path(path)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let what = path.display().to_string();
+    read_image_bytes(&bytes, format, &what, options)
+}
+
+/// Decodes an image held in memory (`what` names it in errors).
+pub fn read_image_bytes(
+    bytes: &[u8],
+    format: Format,
+    what: &str,
+    options: &ReadOptions,
+) -> Result<ImageFile> {
+    if bytes.is_empty() {
+        return Err(Error::decode(what, "the file is empty"));
+    }
+    let image = match format {
+        Format::Png => png::read(bytes, what)?,
+        Format::Tiff => tiff::read(bytes, what)?,
+        Format::Npy => npy::read(bytes, what)?,
+        Format::Raw => {
+            let shape = options.raw_shape.ok_or_else(|| {
+                Error::param("raw-shape", "none", "WxH or WxHxC for a raw f32 file")
+            })?;
+            raw::read(bytes, what, shape)?
+        }
+    };
+    if image.raster.width == 0 || image.raster.height == 0 {
+        return Err(Error::decode(what, "the image has no pixels (0 width or height)"));
+    }
+    Ok(image)
+}
+
+/// Writes heights (or colours) to `path` in the format its extension names: 16-bit PNG,
+/// 32-bit float TIFF or float32 `.npy`. Non-finite samples are refused.
+pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> Result<()> {
+    if raster.data.iter().any(|v| !v.is_finite()) {
+        return Err(Error::param(
+            "output samples",
+            "non-finite",
+            "finite heights (NaN or infinite values cannot be written)",
+        ));
+    }
+    let format = Format::from_path(path)?;
+    write_atomically(path, |w| match format {
+        Format::Png => png::write16(w, raster, spacing_um),
+        Format::Tiff => tiff::write(w, raster, spacing_um),
+        Format::Npy => npy::write(w, raster),
+        Format::Raw => {
+            for v in &raster.data {
+                std::io::Write::write_all(w, &v.to_le_bytes())
+                    .map_err(|e| Error::io(path, e))?;
+            }
+            Ok(())
+        }
+    })
+}
+
+/// Writes a file through a temporary sibling that is renamed into place on success and
+/// removed on failure, so `path` is either complete or untouched.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let tmp = temp_sibling(path);
+    let result = (|| {
+        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let mut w = BufWriter::new(file);
+        write(&mut w)?;
+        let file = w
+            .into_inner()
+            .map_err(|e| Error::io(path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(path, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+fn temp_sibling(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    path.with_file_name(format!(".{name}.part-{}", std::process::id()))
+}
+
+/// Drops a trailing alpha channel: 2 → 1 and 4 → 3 channels.
+fn drop_alpha(data: Vec<f32>, channels: usize) -> (Vec<f32>, usize) {
+    if channels == 2 || channels == 4 {
+        let keep = channels - 1;
+        let out = data
+            .chunks_exact(channels)
+            .flat_map(|px| px[..keep].to_vec())
+            .collect();
+        (out, keep)
+    } else {
+        (data, channels)
+    }
+}
+
+/// Parses "WxH" or "WxHxC" (also with '×').
+pub fn parse_shape(text: &str) -> Result<(usize, usize, usize)> {
+    let bad = || Error::param("raw-shape", text, "WxH or WxHxC with positive integers, e.g. 512x512");
+    let parts: Vec<usize> = text
+        .split(['x', 'X', '×'])
+        .map(|p| p.trim().parse::<usize>().map_err(|_| bad()))
+        .collect::<Result<_>>()?;
+    match parts[..] {
+        [w, h] if w > 0 && h > 0 => Ok((w, h, 1)),
+        [w, h, c] if w > 0 && h > 0 && (1..=4).contains(&c) => Ok((w, h, c)),
+        _ => Err(bad()),
+    }
+}

@@ -1,0 +1,150 @@
+//! PNG reading (8/16-bit grey, grey+alpha, RGB, RGBA, palette) and writing.
+
+use std::io::{Cursor, Write};
+
+use png::{BitDepth, ColorType, Transformations};
+
+use super::{HeightMeta, ImageFile, drop_alpha};
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+const META_KEY: &str = "surftile";
+
+pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
+    let bad = |e: png::DecodingError| Error::decode(what, format!("not a valid PNG ({e})"));
+    let mut decoder = png::Decoder::new_with_limits(
+        Cursor::new(bytes),
+        png::Limits {
+            bytes: 1 << 32,
+        },
+    );
+    decoder.set_transformations(Transformations::EXPAND);
+    let mut reader = decoder.read_info().map_err(bad)?;
+    let meta: Option<HeightMeta> = reader
+        .info()
+        .uncompressed_latin1_text
+        .iter()
+        .find(|t| t.keyword == META_KEY)
+        .and_then(|t| serde_json::from_str(&t.text).ok());
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| Error::Limits(format!("{what}: PNG too large to decode")))?;
+    let mut buf = vec![0u8; size];
+    let info = reader.next_frame(&mut buf).map_err(bad)?;
+    buf.truncate(info.buffer_size());
+    let (w, h) = (info.width as usize, info.height as usize);
+    let channels = match info.color_type {
+        ColorType::Grayscale => 1,
+        ColorType::GrayscaleAlpha => 2,
+        ColorType::Rgb => 3,
+        ColorType::Rgba => 4,
+        ColorType::Indexed => {
+            return Err(Error::Unsupported(format!("{what}: palette PNG after expansion")));
+        }
+    };
+    let (levels, max_level) = match info.bit_depth {
+        BitDepth::Sixteen => (
+            buf.chunks_exact(2)
+                .map(|b| u16::from_be_bytes([b[0], b[1]]) as f32)
+                .collect::<Vec<f32>>(),
+            65535.0,
+        ),
+        _ => (buf.iter().map(|&b| b as f32).collect(), 255.0),
+    };
+    let row = w * channels;
+    let mut data = Vec::with_capacity(w * h * channels);
+    for r in 0..h {
+        // Rows may be padded in the decoder's buffer; take exactly what the image holds.
+        let start = r * (levels.len() / h.max(1));
+        data.extend_from_slice(&levels[start..start + row]);
+    }
+    let (mut data, channels) = drop_alpha(data, channels);
+    let mut spacing_um = None;
+    if let Some(meta) = meta {
+        if let (Some(lo), Some(hi)) = (meta.height_min, meta.height_max) {
+            let scale = ((hi - lo) / max_level) as f32;
+            for v in &mut data {
+                *v = lo as f32 + *v * scale;
+            }
+        }
+        spacing_um = meta.spacing_um;
+    }
+    Ok(ImageFile {
+        raster: Raster::from_vec(w, h, channels, data)?,
+        spacing_um,
+    })
+}
+
+/// 16-bit PNG of `raster` (1 or 3 channels), min–max scaled over all samples; the range
+/// and spacing go into a `surftile` tEXt chunk as JSON.
+pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f64>) -> Result<()> {
+    let color = match raster.channels {
+        1 => ColorType::Grayscale,
+        3 => ColorType::Rgb,
+        c => return Err(Error::Unsupported(format!("writing a {c}-channel PNG"))),
+    };
+    let (lo, hi) = raster
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
+    let span = (hi - lo) as f64;
+    let meta = HeightMeta {
+        height_min: Some(lo as f64),
+        height_max: Some(hi as f64),
+        spacing_um,
+    };
+    let mut bytes = Vec::with_capacity(raster.data.len() * 2);
+    for &v in &raster.data {
+        let level = if span > 0.0 {
+            (((v - lo) as f64 / span) * 65535.0).round() as u16
+        } else {
+            0
+        };
+        bytes.extend_from_slice(&level.to_be_bytes());
+    }
+    encode(w, raster.width, raster.height, color, BitDepth::Sixteen, &bytes, Some(&meta))
+}
+
+/// Writes an 8-bit PNG (grey or RGB by `channels`) atomically to `path`.
+pub fn write_png8(
+    path: &std::path::Path,
+    width: usize,
+    height: usize,
+    channels: usize,
+    pixels: &[u8],
+) -> Result<()> {
+    let color = if channels == 3 {
+        ColorType::Rgb
+    } else {
+        ColorType::Grayscale
+    };
+    super::write_atomically(path, |w| {
+        encode(w, width, height, color, BitDepth::Eight, pixels, None)
+    })
+}
+
+fn encode(
+    w: &mut impl Write,
+    width: usize,
+    height: usize,
+    color: ColorType,
+    depth: BitDepth,
+    bytes: &[u8],
+    meta: Option<&HeightMeta>,
+) -> Result<()> {
+    let err = |e: png::EncodingError| Error::decode("PNG output", e.to_string());
+    let (w32, h32) = (
+        u32::try_from(width).map_err(|_| Error::Limits(format!("PNG width {width}")))?,
+        u32::try_from(height).map_err(|_| Error::Limits(format!("PNG height {height}")))?,
+    );
+    let mut enc = png::Encoder::new(w, w32, h32);
+    enc.set_color(color);
+    enc.set_depth(depth);
+    if let Some(meta) = meta {
+        let text = serde_json::to_string(meta).map_err(|e| Error::decode("PNG metadata", e.to_string()))?;
+        enc.add_text_chunk(META_KEY.to_string(), text).map_err(err)?;
+    }
+    let mut writer = enc.write_header().map_err(err)?;
+    writer.write_image_data(bytes).map_err(err)?;
+    writer.finish().map_err(err)
+}

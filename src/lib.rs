@@ -1,0 +1,9 @@
+//! surftile: infinite, deterministic surfaces from a small exemplar.
+pub mod analysis;
+pub mod error;
+pub mod fft;
+pub mod hash;
+pub mod io;
+pub mod raster;
+pub use error::{Error, Result};
+pub use raster::Raster;
