@@ -6,3 +6,4 @@ pub mod missing;
 pub mod periodic;
 pub mod resample;
 pub mod rpn;
+pub mod taper;

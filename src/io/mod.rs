@@ -1,8 +1,8 @@
 //! Exemplar and output formats.
 //!
 //! Read: PNG 8/16-bit (grey, grey+alpha, RGB, RGBA; alpha is dropped), TIFF (8/16-bit
-//! integer, 32/64-bit float; grey or RGB), NumPy `.npy` (f32, f64, u8, u16, i16, i32; C
-//! order; H×W or H×W×C), raw little-endian f32 with a given shape.
+//! integer, 32/64-bit float; grey or RGB), NumPy `.npy` (f32, f64, u8, u16, i16, i32; C or
+//! Fortran order; H×W or H×W×C), raw little-endian f32 with a given shape.
 //!
 //! Write: 16-bit PNG (the height range is stored in a `surftile` text chunk so heights
 //! can be recovered), 32-bit float TIFF (metadata in ImageDescription) and `.npy`

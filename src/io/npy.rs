@@ -1,4 +1,4 @@
-//! NumPy `.npy` reading (f32, f64, u8, u16, i16, i32; C order; H×W or H×W×C) and
+//! NumPy `.npy` reading (f32, f64, u8, u16, i16, i32; C or Fortran order; H×W or H×W×C) and
 //! float32 writing, on the `npyz` crate.
 
 use std::io::Write;
@@ -12,9 +12,7 @@ use crate::raster::Raster;
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let bad = |m: String| Error::decode(what, m);
     let npy = NpyFile::new(bytes).map_err(|e| bad(format!("not a valid .npy file ({e})")))?;
-    if npy.order() != Order::C {
-        return Err(bad("Fortran-order array; save it with np.ascontiguousarray first".into()));
-    }
+    let fortran = npy.order() == Order::Fortran;
     let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();
     let (h, w, c) = match shape[..] {
         [h, w] => (h, w, 1),
@@ -37,6 +35,23 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         (TypeChar::Int, 2) => npy.into_vec::<i16>().map_err(read_err)?.into_iter().map(f32::from).collect(),
         (TypeChar::Int, 4) => npy.into_vec::<i32>().map_err(read_err)?.into_iter().map(|v| v as f32).collect(),
         _ => return Err(bad(format!("dtype {ts}; expected float32/64, uint8/16 or int16/32"))),
+    };
+    if data.len() != w * h * c {
+        return Err(bad("data length does not match the shape".into()));
+    }
+    // Fortran order: element (y, x, ch) sits at y + h·(x + w·ch).
+    let data = if fortran {
+        let mut out = vec![0.0f32; data.len()];
+        for y in 0..h {
+            for x in 0..w {
+                for ch in 0..c {
+                    out[(y * w + x) * c + ch] = data[y + h * (x + w * ch)];
+                }
+            }
+        }
+        out
+    } else {
+        data
     };
     let (data, c) = super::drop_alpha(data, c);
     Ok(ImageFile {

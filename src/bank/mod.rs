@@ -1,0 +1,313 @@
+//! Bank files: baked tiles plus everything the runtime needs to place them.
+//!
+//! # Format, version 1 (little-endian)
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8 | magic `SURFTILE` |
+//! | 4 | format version, u32 (= 1) |
+//! | 4 | header length n, u32 |
+//! | n | header: UTF-8 JSON, a [`BankHeader`] (rule, channels, tile size, lattice, mip levels, spacing, exemplar statistics, bake parameters…) |
+//! | 4·m | payload: f32 texels of every mip level (level, tile, row, column, channel), then the T⁻¹ tables (level, channel, entry) |
+//! | 4 | CRC-32 (IEEE) of every byte before it |
+//!
+//! The reader checks, in this order and before any of the data is used: magic, version,
+//! length, checksum, header, sizes (the payload must be exactly what the header
+//! describes) and values (all finite, tables monotone). A bank written by one build is
+//! read by the next: `tests/data/golden-v1.bank` guards that.
+
+use std::io::Write;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// File magic.
+pub const MAGIC: &[u8; 8] = b"SURFTILE";
+/// The format version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// How cells pick tiles and how neighbours meet (DESIGN.md, "Runtime placement rules").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Rule {
+    /// Variance-preserving triangle-grid blending of periodic Gaussian patches.
+    Blend,
+}
+
+/// The analysis that made the tiles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Random phase noise (seed 000 §3.1.2).
+    Rpn,
+    /// Asymptotic discrete spot noise (seed 000 §3.1.1).
+    Adsn,
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Method::Rpn => "rpn",
+            Method::Adsn => "adsn",
+        })
+    }
+}
+
+/// Statistics of the exemplar after preprocessing, kept for histogram checks.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExemplarInfo {
+    /// File the exemplar came from.
+    pub source: String,
+    /// Width in pixels after preprocessing.
+    pub width: usize,
+    /// Height in pixels after preprocessing.
+    pub height: usize,
+    /// Mean per channel (height units).
+    pub mean: Vec<f64>,
+    /// Standard deviation per channel (height units).
+    pub std: Vec<f64>,
+    /// Probabilities at which `quantiles` are given.
+    pub quantile_levels: Vec<f64>,
+    /// Quantiles per channel (height units), one row per channel.
+    pub quantiles: Vec<Vec<f64>>,
+}
+
+/// One mip level of a blend bank.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LevelInfo {
+    /// Tile size at this level, `[w, h]` texels; each texel covers 2^level pixels a side.
+    pub size: [usize; 2],
+    /// Mean of the Gaussian tiles per channel.
+    pub mean: Vec<f64>,
+    /// Standard deviation of the Gaussian tiles per channel.
+    pub sigma: Vec<f64>,
+}
+
+/// The self-describing header of a bank file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BankHeader {
+    /// Placement rule.
+    pub rule: Rule,
+    /// Analysis method.
+    pub method: Method,
+    /// Values per pixel.
+    pub channels: usize,
+    /// Number of tiles (K).
+    pub tiles: usize,
+    /// Level-0 tile size `[w, h]` in pixels (powers of two).
+    pub tile_size: [usize; 2],
+    /// Lattice basis `[[ux, uy], [vx, vy]]` in pixels: for the blend rule, the
+    /// triangle grid's edge vectors.
+    pub lattice: [[f64; 2]; 2],
+    /// Triangle edge length E in pixels (blend rule).
+    pub triangle_edge: f64,
+    /// Mip levels, level 0 first.
+    pub levels: Vec<LevelInfo>,
+    /// Pixel spacing in µm per pixel, if known.
+    pub spacing_um: Option<f64>,
+    /// Unit of the heights (e.g. "um"), or "" when unknown.
+    pub height_unit: String,
+    /// Seed of the bake (random phases, crop positions).
+    pub seed: u64,
+    /// Entries per T⁻¹ table.
+    pub lut_size: usize,
+    /// The tables cover standardised Gaussian values z ∈ [−lut_z_range, lut_z_range].
+    pub lut_z_range: f64,
+    /// The exemplar's statistics.
+    pub exemplar: ExemplarInfo,
+    /// The bake parameters, as text.
+    pub bake: String,
+}
+
+/// A bank in memory: header, texels per level and T⁻¹ tables per level.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bank {
+    /// What the bank is.
+    pub header: BankHeader,
+    /// Per level: `tiles × h × w × channels` texels.
+    pub texels: Vec<Vec<f32>>,
+    /// Per level: `channels × lut_size` table entries.
+    pub luts: Vec<Vec<f32>>,
+}
+
+impl Bank {
+    /// Checks that the header is coherent and the data matches it. `what` names the
+    /// bank in errors.
+    pub fn validate(&self, what: &str) -> Result<()> {
+        let h = &self.header;
+        let bad = |m: String| Err(Error::bank(what, m));
+        if !(1..=4).contains(&h.channels) {
+            return bad(format!("{} channels; expected 1 to 4", h.channels));
+        }
+        if h.tiles == 0 || h.tiles > 4096 {
+            return bad(format!("{} tiles; expected 1 to 4096", h.tiles));
+        }
+        let [w, ht] = h.tile_size;
+        if !w.is_power_of_two() || !ht.is_power_of_two() || w < 4 || ht < 4 || w > 8192 || ht > 8192 {
+            return bad(format!("tile size {w}×{ht}; expected powers of two from 4 to 8192"));
+        }
+        if !(h.triangle_edge.is_finite() && h.triangle_edge >= 1.0) {
+            return bad(format!("triangle edge {}; expected ≥ 1 pixel", h.triangle_edge));
+        }
+        if h.levels.is_empty() || h.levels.len() > 14 {
+            return bad(format!("{} mip levels; expected 1 to 14", h.levels.len()));
+        }
+        if h.lut_size < 2 || h.lut_size > 1 << 20 || !(h.lut_z_range > 0.0 && h.lut_z_range.is_finite()) {
+            return bad(format!("T⁻¹ table of {} entries over ±{}", h.lut_size, h.lut_z_range));
+        }
+        if let Some(s) = h.spacing_um
+            && !(s.is_finite() && s > 0.0)
+        {
+            return bad(format!("pixel spacing {s} µm; expected a positive number"));
+        }
+        if self.texels.len() != h.levels.len() || self.luts.len() != h.levels.len() {
+            return bad("level count differs between header and data".into());
+        }
+        for (l, info) in h.levels.iter().enumerate() {
+            let expected = [(w >> l).max(1), (ht >> l).max(1)];
+            if info.size != expected {
+                return bad(format!("level {l} is {:?}; expected {expected:?}", info.size));
+            }
+            if info.mean.len() != h.channels || info.sigma.len() != h.channels {
+                return bad(format!("level {l} statistics do not have {} channels", h.channels));
+            }
+            if info.mean.iter().chain(&info.sigma).any(|v| !v.is_finite()) || info.sigma.iter().any(|&s| s < 0.0) {
+                return bad(format!("level {l} statistics are not finite"));
+            }
+            if self.texels[l].len() != h.tiles * expected[0] * expected[1] * h.channels {
+                return bad(format!("level {l} holds {} texels", self.texels[l].len()));
+            }
+            if self.luts[l].len() != h.channels * h.lut_size {
+                return bad(format!("level {l} table holds {} entries", self.luts[l].len()));
+            }
+            if self.texels[l].iter().any(|v| !v.is_finite()) {
+                return bad(format!("level {l} has non-finite texels"));
+            }
+            for table in self.luts[l].chunks_exact(h.lut_size) {
+                if table.iter().any(|v| !v.is_finite()) || table.windows(2).any(|p| p[1] < p[0]) {
+                    return bad(format!("level {l} T⁻¹ table is not finite and non-decreasing"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Serialises the bank (validating it first).
+    pub fn to_bytes(&self) -> Result<Vec<u8>> {
+        self.validate("being written")?;
+        let header = serde_json::to_vec(&self.header)
+            .map_err(|e| Error::bank("being written", format!("header: {e}")))?;
+        let payload: usize = self.texels.iter().chain(&self.luts).map(|v| v.len() * 4).sum();
+        let mut out = Vec::with_capacity(20 + header.len() + payload);
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&VERSION.to_le_bytes());
+        out.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        out.extend_from_slice(&header);
+        for block in self.texels.iter().chain(&self.luts) {
+            out.extend_from_slice(bytemuck::cast_slice::<f32, u8>(block));
+        }
+        let crc = crc32fast::hash(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
+        Ok(out)
+    }
+
+    /// Parses and validates a bank from bytes (`what` names it in errors).
+    pub fn from_bytes(bytes: &[u8], what: &str) -> Result<Bank> {
+        let bad = |m: &str| Error::bank(what, m.to_string());
+        if bytes.len() < 20 || &bytes[..8] != MAGIC {
+            return Err(bad("not a surftile bank (bad magic or too short)"));
+        }
+        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap_or_default());
+        if version != VERSION {
+            return Err(Error::bank(
+                what,
+                format!("format version {version}; this build reads version {VERSION}"),
+            ));
+        }
+        let header_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap_or_default()) as usize;
+        let body_end = bytes.len() - 4;
+        if 16 + header_len > body_end {
+            return Err(bad("truncated: the header runs past the end of the file"));
+        }
+        let stored = u32::from_le_bytes(bytes[body_end..].try_into().unwrap_or_default());
+        if crc32fast::hash(&bytes[..body_end]) != stored {
+            return Err(bad("checksum mismatch: the file is truncated or corrupt"));
+        }
+        let header: BankHeader = serde_json::from_slice(&bytes[16..16 + header_len])
+            .map_err(|e| Error::bank(what, format!("header is not valid: {e}")))?;
+        if !(1..=4).contains(&header.channels) || header.levels.len() > 14 {
+            return Err(bad("header describes an impossible layout"));
+        }
+        let payload = &bytes[16 + header_len..body_end];
+        let mut offset = 0usize;
+        let mut take = |count: usize| -> Result<Vec<f32>> {
+            let n = count
+                .checked_mul(4)
+                .filter(|n| offset + n <= payload.len())
+                .ok_or_else(|| bad("truncated: the data is shorter than the header says"))?;
+            let v = bytemuck::pod_collect_to_vec::<u8, f32>(&payload[offset..offset + n]);
+            offset += n;
+            Ok(v)
+        };
+        let mut texels = Vec::new();
+        for info in &header.levels {
+            let count = header
+                .tiles
+                .checked_mul(info.size[0])
+                .and_then(|n| n.checked_mul(info.size[1]))
+                .and_then(|n| n.checked_mul(header.channels))
+                .ok_or_else(|| bad("header sizes overflow"))?;
+            texels.push(take(count)?);
+        }
+        let mut luts = Vec::new();
+        for _ in &header.levels {
+            luts.push(take(header.channels * header.lut_size)?);
+        }
+        if offset != payload.len() {
+            return Err(bad("the data is longer than the header says"));
+        }
+        let bank = Bank { header, texels, luts };
+        bank.validate(what)?;
+        Ok(bank)
+    }
+
+    /// Reads and validates a bank file.
+    pub fn read(path: &Path) -> Result<Bank> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        Bank::from_bytes(&bytes, &path.display().to_string())
+    }
+
+    /// Writes the bank atomically (temporary file, then rename).
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let bytes = self.to_bytes()?;
+        crate::io::write_atomically(path, |w| w.write_all(&bytes).map_err(|e| Error::io(path, e)))
+    }
+
+    /// The summary `surftile info --json` prints.
+    pub fn info_json(&self, file_bytes: Option<u64>) -> serde_json::Value {
+        let h = &self.header;
+        serde_json::json!({
+            "format_version": VERSION,
+            "rule": h.rule,
+            "method": h.method,
+            "channels": h.channels,
+            "tiles": h.tiles,
+            "tile_size": h.tile_size,
+            "lattice": h.lattice,
+            "triangle_edge": h.triangle_edge,
+            "mip_levels": h.levels.len(),
+            "spacing_um": h.spacing_um,
+            "height_unit": h.height_unit,
+            "seed": h.seed,
+            "lut_size": h.lut_size,
+            "exemplar": h.exemplar,
+            "bake": h.bake,
+            "file_bytes": file_bytes,
+        })
+    }
+}
+
+#[cfg(target_endian = "big")]
+compile_error!("the bank format is little-endian and is cast with bytemuck; big-endian targets need byte swapping");

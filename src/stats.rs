@@ -1,0 +1,436 @@
+//! Quality figures (DESIGN.md, "Quality figures"): what tests, benches and
+//! `surftile stats` use to call a texture good, never the eye alone.
+//!
+//! All functions take single-channel height rasters.
+
+use rustfft::num_complex::Complex64;
+use serde::Serialize;
+
+use crate::fft::{Fft2, forward_real};
+use crate::raster::Raster;
+
+/// The ACF threshold of ISO 25178's Sal and Str.
+const ACF_THRESHOLD: f64 = 0.2;
+/// Radial PSD bins are merged from low frequency up until each holds this many samples.
+const PSD_MIN_BIN_SAMPLES: usize = 32;
+
+/// Areal roughness parameters (ISO 25178) of one height map, in its height unit;
+/// lengths in pixels.
+#[derive(Clone, Debug, Serialize)]
+pub struct HeightStats {
+    /// Mean height.
+    pub mean: f64,
+    /// Root-mean-square height about the mean.
+    pub sq: f64,
+    /// Arithmetic mean absolute height about the mean.
+    pub sa: f64,
+    /// Skewness.
+    pub ssk: f64,
+    /// Kurtosis (3 for a Gaussian).
+    pub sku: f64,
+    /// Maximum height: highest peak minus lowest valley.
+    pub sz: f64,
+    /// Autocorrelation length: shortest lag at which the normalised ACF falls to 0.2 (px).
+    pub sal: f64,
+    /// Texture aspect ratio: Sal over the longest such lag (1 = isotropic).
+    pub str: f64,
+    /// Repetition score: highest normalised ACF at lags beyond the longest decay length.
+    pub repetition: f64,
+}
+
+/// Everything `surftile stats A B` reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct Comparison {
+    /// Figures of A (the exemplar).
+    pub a: HeightStats,
+    /// Figures of B (the synthesis).
+    pub b: HeightStats,
+    /// 1-Wasserstein distance between the height histograms, both standardised by A's
+    /// mean and standard deviation.
+    pub w1: f64,
+    /// RMS over radial bins of log10 P_B − log10 P_A (0 = same spectrum).
+    pub psd_error: f64,
+    /// Seam score of B on square cells of `cell` px (1.0 = invisible seams), if asked.
+    pub seam_score: Option<f64>,
+    /// The cell size the seam score used.
+    pub cell: Option<usize>,
+}
+
+/// Compares exemplar `a` with synthesis `b`.
+pub fn compare(a: &Raster, b: &Raster, cell: Option<usize>) -> Comparison {
+    Comparison {
+        a: height_stats(a),
+        b: height_stats(b),
+        w1: wasserstein1_standardised(a, b),
+        psd_error: psd_error(a, b),
+        seam_score: cell.map(|n| seam_score(b, n)),
+        cell,
+    }
+}
+
+fn moments(v: &[f32]) -> (f64, f64) {
+    let n = v.len().max(1) as f64;
+    let mean = v.iter().map(|&x| x as f64).sum::<f64>() / n;
+    let var = v.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / n;
+    (mean, var.sqrt())
+}
+
+/// Roughness parameters of a height map.
+pub fn height_stats(r: &Raster) -> HeightStats {
+    let v = &r.data;
+    let n = v.len().max(1) as f64;
+    let (mean, sq) = moments(v);
+    let sa = v.iter().map(|&x| (x as f64 - mean).abs()).sum::<f64>() / n;
+    let m3 = v.iter().map(|&x| (x as f64 - mean).powi(3)).sum::<f64>() / n;
+    let m4 = v.iter().map(|&x| (x as f64 - mean).powi(4)).sum::<f64>() / n;
+    let (lo, hi) = v.iter().fold((f32::MAX, f32::MIN), |(l, u), &x| (l.min(x), u.max(x)));
+    let acf = Acf::new(r);
+    let (sal, longest) = acf.decay_lengths();
+    let repetition = acf.max_beyond(longest);
+    let safe = |x: f64| if x.is_finite() { x } else { 0.0 };
+    HeightStats {
+        mean,
+        sq,
+        sa,
+        ssk: safe(m3 / sq.powi(3)),
+        sku: safe(m4 / sq.powi(4)),
+        sz: (hi - lo) as f64,
+        sal,
+        str: if longest > 0.0 { sal / longest } else { 0.0 },
+        repetition,
+    }
+}
+
+/// Normalised autocorrelation of a height map, from a zero-padded FFT.
+pub struct Acf {
+    w: usize,
+    h: usize,
+    pw: usize,
+    ph: usize,
+    /// Raw lag sums, periodic index on the padded grid.
+    raw: Vec<f64>,
+    zero_lag: f64,
+}
+
+impl Acf {
+    /// The ACF of `r` (mean removed).
+    pub fn new(r: &Raster) -> Acf {
+        let (w, h) = (r.width, r.height);
+        let (pw, ph) = (2 * w, 2 * h);
+        let (mean, _) = moments(&r.data);
+        let mut padded = vec![0.0; pw * ph];
+        for y in 0..h {
+            for x in 0..w {
+                padded[y * pw + x] = r.get(x, y, 0) as f64 - mean;
+            }
+        }
+        let mut plan = Fft2::new(pw, ph);
+        let mut spec = forward_real(&mut plan, &padded);
+        for s in &mut spec {
+            *s = Complex64::new(s.norm_sqr(), 0.0);
+        }
+        plan.inverse(&mut spec);
+        let scale = 1.0 / (pw * ph) as f64;
+        let raw: Vec<f64> = spec.iter().map(|c| c.re * scale).collect();
+        let zero_lag = raw[0];
+        Acf {
+            w,
+            h,
+            pw,
+            ph,
+            raw,
+            zero_lag,
+        }
+    }
+
+    fn raw_at(&self, dx: i64, dy: i64) -> f64 {
+        let x = dx.rem_euclid(self.pw as i64) as usize;
+        let y = dy.rem_euclid(self.ph as i64) as usize;
+        self.raw[y * self.pw + x]
+    }
+
+    /// Biased normalised ACF at an integer lag (1 at lag 0), as ISO 25178 defines it.
+    pub fn at(&self, dx: i64, dy: i64) -> f64 {
+        if self.zero_lag <= 0.0 {
+            return 0.0;
+        }
+        self.raw_at(dx, dy) / self.zero_lag
+    }
+
+    /// Unbiased normalised ACF: each lag divided by its number of overlapping pairs.
+    pub fn unbiased(&self, dx: i64, dy: i64) -> f64 {
+        let overlap = (self.w as i64 - dx.abs()) * (self.h as i64 - dy.abs());
+        if overlap <= 0 || self.zero_lag <= 0.0 {
+            return 0.0;
+        }
+        let n = (self.w * self.h) as f64;
+        self.raw_at(dx, dy) / overlap as f64 / (self.zero_lag / n)
+    }
+
+    fn bilinear(&self, x: f64, y: f64) -> f64 {
+        let (x0, y0) = (x.floor(), y.floor());
+        let (tx, ty) = (x - x0, y - y0);
+        let (ix, iy) = (x0 as i64, y0 as i64);
+        let a = self.at(ix, iy) * (1.0 - tx) + self.at(ix + 1, iy) * tx;
+        let b = self.at(ix, iy + 1) * (1.0 - tx) + self.at(ix + 1, iy + 1) * tx;
+        a * (1.0 - ty) + b * ty
+    }
+
+    /// (shortest, longest) distance over directions at which the ACF first falls to
+    /// 0.2, in pixels; a direction that never falls within half the map counts as half
+    /// the map's smaller side.
+    pub fn decay_lengths(&self) -> (f64, f64) {
+        let r_max = (self.w.min(self.h) / 2) as f64;
+        let (mut shortest, mut longest) = (f64::MAX, 0.0f64);
+        for deg in 0..180 {
+            let th = (deg as f64).to_radians();
+            let (c, s) = (th.cos(), th.sin());
+            let mut prev = (0.0, 1.0);
+            let mut found = r_max;
+            let mut r = 0.5;
+            while r <= r_max {
+                let v = self.bilinear(r * c, r * s);
+                if v <= ACF_THRESHOLD {
+                    let (r0, v0) = prev;
+                    found = r0 + (r - r0) * (v0 - ACF_THRESHOLD) / (v0 - v).max(1e-12);
+                    break;
+                }
+                prev = (r, v);
+                r += 0.5;
+            }
+            shortest = shortest.min(found);
+            longest = longest.max(found);
+        }
+        (shortest, longest)
+    }
+
+    /// Highest unbiased normalised ACF at lags longer than `beyond` px and within half
+    /// the map in each axis (a periodic texture scores near 1, a non-repeating one low).
+    pub fn max_beyond(&self, beyond: f64) -> f64 {
+        let (hx, hy) = ((self.w / 2) as i64, (self.h / 2) as i64);
+        let mut best = f64::MIN;
+        for dy in 0..=hy {
+            for dx in -hx..=hx {
+                if ((dx * dx + dy * dy) as f64).sqrt() > beyond {
+                    best = best.max(self.unbiased(dx, dy));
+                }
+            }
+        }
+        if best == f64::MIN { 0.0 } else { best }
+    }
+}
+
+/// 1-Wasserstein distance between the empirical height distributions of `a` and `b`,
+/// both standardised by a's mean and standard deviation (exact, by merging the sorted
+/// samples).
+pub fn wasserstein1_standardised(a: &Raster, b: &Raster) -> f64 {
+    let (mean, sd) = moments(&a.data);
+    let sd = if sd > 0.0 { sd } else { 1.0 };
+    let prep = |r: &Raster| {
+        let mut v: Vec<f64> = r.data.iter().map(|&x| (x as f64 - mean) / sd).collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    wasserstein1_sorted(&prep(a), &prep(b))
+}
+
+/// W1 = ∫ |F_a(t) − F_b(t)| dt for two ascending samples.
+pub fn wasserstein1_sorted(a: &[f64], b: &[f64]) -> f64 {
+    if a.is_empty() || b.is_empty() {
+        return 0.0;
+    }
+    let (na, nb) = (a.len() as f64, b.len() as f64);
+    let (mut i, mut j) = (0usize, 0usize);
+    let mut prev = a[0].min(b[0]);
+    let mut acc = 0.0;
+    while i < a.len() || j < b.len() {
+        let next = a.get(i).copied().unwrap_or(f64::INFINITY).min(b.get(j).copied().unwrap_or(f64::INFINITY));
+        acc += (i as f64 / na - j as f64 / nb).abs() * (next - prev);
+        prev = next;
+        while i < a.len() && a[i] == next {
+            i += 1;
+        }
+        while j < b.len() && b[j] == next {
+            j += 1;
+        }
+    }
+    acc
+}
+
+/// Radially averaged power spectrum of square `n × n` windows of `r` (mean removed, Hann
+/// window), averaged over up to `max_windows` non-overlapping windows. Returns the mean
+/// power per integer radius 0..=n/2 and the number of frequencies per radius in one
+/// window.
+fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>) {
+    let hann: Vec<f64> = (0..n)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * (i as f64 + 0.5) / n as f64).cos())
+        .collect();
+    let mut plan = Fft2::new(n, n);
+    let bins = n / 2 + 1;
+    let mut power = vec![0.0; bins];
+    let mut count = vec![0usize; bins];
+    let bin_of = |k: usize| if k <= n / 2 { k as f64 } else { k as f64 - n as f64 };
+    for ky in 0..n {
+        for kx in 0..n {
+            let rad = bin_of(kx).hypot(bin_of(ky));
+            if rad >= 1.0 && rad <= (n / 2) as f64 {
+                count[rad as usize] += 1;
+            }
+        }
+    }
+    let mut windows = 0;
+    'outer: for wy in 0..r.height / n {
+        for wx in 0..r.width / n {
+            if windows == max_windows {
+                break 'outer;
+            }
+            windows += 1;
+            let mut win: Vec<f64> = (0..n * n).map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64).collect();
+            let m = win.iter().sum::<f64>() / (n * n) as f64;
+            for (i, v) in win.iter_mut().enumerate() {
+                *v = (*v - m) * hann[i % n] * hann[i / n];
+            }
+            let spec = forward_real(&mut plan, &win);
+            for ky in 0..n {
+                for kx in 0..n {
+                    let rad = bin_of(kx).hypot(bin_of(ky));
+                    if rad >= 1.0 && rad <= (n / 2) as f64 {
+                        power[rad as usize] += spec[ky * n + kx].norm_sqr();
+                    }
+                }
+            }
+        }
+    }
+    for (p, &c) in power.iter_mut().zip(&count) {
+        if c > 0 {
+            *p /= (c * windows.max(1)) as f64;
+        }
+    }
+    (power, count)
+}
+
+/// PSD error (DESIGN.md): on equal-size square windows of a and b (side = the smallest
+/// side of either), radially average the power spectra, merge low-frequency bins until
+/// each holds ≥ 32 samples, and take the RMS over bins of log10 P_b − log10 P_a.
+pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
+    let n = a.width.min(a.height).min(b.width).min(b.height);
+    if n < 8 {
+        return f64::NAN;
+    }
+    let (pa, counts) = radial_psd(a, n, 64);
+    let (pb, _) = radial_psd(b, n, 64);
+    let (mut sq, mut bins) = (0.0, 0usize);
+    let (mut acc_a, mut acc_b, mut acc_n) = (0.0, 0.0, 0usize);
+    for k in 1..pa.len() {
+        acc_a += pa[k] * counts[k] as f64;
+        acc_b += pb[k] * counts[k] as f64;
+        acc_n += counts[k];
+        if acc_n >= PSD_MIN_BIN_SAMPLES {
+            if acc_a > 0.0 && acc_b > 0.0 {
+                sq += (acc_b.log10() - acc_a.log10()).powi(2);
+                bins += 1;
+            }
+            (acc_a, acc_b, acc_n) = (0.0, 0.0, 0);
+        }
+    }
+    if bins == 0 { f64::NAN } else { (sq / bins as f64).sqrt() }
+}
+
+/// Seam score on square cells of `cell` px: mean squared gradient across cell borders
+/// divided by that inside cells (1.0 = seams invisible).
+pub fn seam_score(r: &Raster, cell: usize) -> f64 {
+    let cell = cell.max(1) as i64;
+    seam_score_by(r, |x, y| ((x as i64).div_euclid(cell), (y as i64).div_euclid(cell), false))
+}
+
+/// Seam score for any partition of the pixels into cells: `cell_of(x, y)` names the
+/// cell of pixel (x, y); pixel pairs in different cells are border pairs.
+pub fn seam_score_by(r: &Raster, cell_of: impl Fn(usize, usize) -> (i64, i64, bool)) -> f64 {
+    let (mut border, mut nb, mut inside, mut ni) = (0.0, 0usize, 0.0, 0usize);
+    let ids: Vec<(i64, i64, bool)> = (0..r.pixels()).map(|i| cell_of(i % r.width, i / r.width)).collect();
+    for y in 0..r.height {
+        for x in 0..r.width {
+            let here = r.get(x, y, 0) as f64;
+            let id = ids[y * r.width + x];
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                if nx >= r.width || ny >= r.height {
+                    continue;
+                }
+                let g = (r.get(nx, ny, 0) as f64 - here).powi(2);
+                if ids[ny * r.width + nx] != id {
+                    border += g;
+                    nb += 1;
+                } else {
+                    inside += g;
+                    ni += 1;
+                }
+            }
+        }
+    }
+    if nb == 0 || ni == 0 || inside == 0.0 {
+        return f64::NAN;
+    }
+    (border / nb as f64) / (inside / ni as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn raster(w: usize, h: usize, f: impl Fn(usize, usize) -> f64) -> Raster {
+        Raster::from_vec(w, h, 1, (0..w * h).map(|i| f(i % w, i / w) as f32).collect()).unwrap()
+    }
+
+    #[test]
+    fn w1_of_a_shift_is_the_shift() {
+        let a: Vec<f64> = (0..100).map(|i| i as f64).collect();
+        let b: Vec<f64> = a.iter().map(|v| v + 2.5).collect();
+        assert!((wasserstein1_sorted(&a, &b) - 2.5).abs() < 1e-12);
+        // Different sizes, same distribution: uniform on 0..1 at two resolutions.
+        let c: Vec<f64> = (0..1000).map(|i| (i as f64 + 0.5) / 1000.0).collect();
+        let d: Vec<f64> = (0..10).map(|i| (i as f64 + 0.5) / 10.0).collect();
+        assert!(wasserstein1_sorted(&c, &d) < 0.03);
+    }
+
+    #[test]
+    fn moments_of_a_symmetric_two_level_map() {
+        let r = raster(10, 10, |x, _| if x % 2 == 0 { 1.0 } else { -1.0 });
+        let s = height_stats(&r);
+        assert!(s.mean.abs() < 1e-12 && (s.sq - 1.0).abs() < 1e-12 && (s.sa - 1.0).abs() < 1e-12);
+        assert!(s.ssk.abs() < 1e-12 && (s.sku - 1.0).abs() < 1e-12 && (s.sz - 2.0).abs() < 1e-12);
+    }
+
+    /// A sinusoid along x: ACF = cos(2π dx / period), which first reaches 0.2 at
+    /// dx = period·acos(0.2)/(2π); along y it never decays.
+    #[test]
+    fn sal_and_repetition_of_a_sinusoid() {
+        let period = 16.0;
+        let r = raster(128, 128, |x, _| (2.0 * std::f64::consts::PI * x as f64 / period).sin());
+        let s = height_stats(&r);
+        let expected = period * 0.2f64.acos() / (2.0 * std::f64::consts::PI);
+        // The biased estimator shrinks the ACF by (1 − |dx|/w): allow 10%.
+        assert!((s.sal - expected).abs() < 0.1 * expected, "Sal {} vs {expected}", s.sal);
+        assert!(s.str < 0.2, "Str {}", s.str);
+        assert!(s.repetition > 0.95, "repetition {}", s.repetition);
+    }
+
+    #[test]
+    fn psd_error_is_zero_for_the_same_map_and_grows_with_a_gain() {
+        let r = raster(64, 64, |x, y| ((x * 7 + y * 13) % 17) as f64 + (x as f64 * 0.3).sin());
+        assert!(psd_error(&r, &r) < 1e-12);
+        let mut louder = r.clone();
+        for v in &mut louder.data {
+            *v *= 10.0;
+        }
+        // Power ×100 is +2 in log10 in every bin.
+        assert!((psd_error(&r, &louder) - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn seam_score_sees_a_step_at_cell_borders() {
+        let smooth = raster(64, 64, |x, y| (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos());
+        assert!((seam_score(&smooth, 16) - 1.0).abs() < 0.3);
+        let seamed = raster(64, 64, |x, y| (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos() + ((x / 16) % 2) as f64 * 3.0);
+        assert!(seam_score(&seamed, 16) > 5.0);
+    }
+}

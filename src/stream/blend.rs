@@ -1,0 +1,338 @@
+//! The variance-preserving triangle-grid blend rule over a bank of periodic Gaussian
+//! patches (Heitz & Neyret, "High-Performance By-Example Noise using a
+//! Histogram-Preserving Blending Operator", HPG 2018; Deliot & Heitz 2019), applied to
+//! the RPN/ADSN banks of seed 000 §3.1.
+//!
+//! Space is covered by equilateral triangles of edge E. Each triangle vertex picks, by
+//! hash, a patch and an offset; a sample blends the three patches of its triangle with
+//! barycentric weights w and renormalises around the mean by √(Σw²), which keeps the
+//! mean and variance of the Gaussian patches exactly. The result is mapped through the
+//! stored T⁻¹ table back to the exemplar's height distribution.
+
+use std::ops::Range;
+
+use super::{Region, Surface};
+use crate::analysis::gauss::lut_eval;
+use crate::bank::{Bank, Rule};
+use crate::error::{Error, Result};
+use crate::hash::hash_cell;
+
+const SQRT3: f64 = 1.732_050_807_568_877_2;
+
+/// A surface sampled from a blend bank ([`Rule::Blend`]) with a placement seed.
+pub struct BlendSurface {
+    seed: u32,
+    channels: usize,
+    tiles: u32,
+    levels: Vec<Level>,
+    edge: f64,
+    // Skew to the square grid: s = (x/E − y/(√3·E), 2y/(√3·E)). ALGORITHMS.md §3 prints
+    // this matrix transposed (a GLSL column-major listing read as rows), which gives a
+    // non-equilateral grid; this is the equilateral one (Heitz & Neyret 2018, listing 1).
+    skew_a: f64,
+    skew_b: f64,
+    skew_c: f64,
+    offset_mask_x: i64,
+    offset_mask_y: i64,
+    lut_size: usize,
+    z_range: f32,
+}
+
+struct Level {
+    w: usize,
+    wmask: i64,
+    hmask: i64,
+    /// 2^−L: level-0 pixels to level-L texels.
+    scale: f64,
+    /// (2^L − 1)/2: a level-L texel's centre in level-0 pixels, relative to its first pixel.
+    centre: f64,
+    tile_stride: usize,
+    texels: Vec<f32>,
+    mean: [f32; 4],
+    inv_sigma: [f32; 4],
+    lut: Vec<f32>,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Vertex {
+    tile: u32,
+    ox: i64,
+    oy: i64,
+}
+
+/// The hashed choices of the last triangle visited; reused while a row stays in it.
+#[derive(Clone, Copy)]
+struct VertexCache {
+    key: (i64, i64, bool),
+    valid: bool,
+    verts: [Vertex; 3],
+}
+
+impl Default for VertexCache {
+    fn default() -> Self {
+        VertexCache {
+            key: (0, 0, false),
+            valid: false,
+            verts: [Vertex::default(); 3],
+        }
+    }
+}
+
+impl BlendSurface {
+    /// A surface over `bank` (which must use the blend rule), placed with `seed`.
+    pub fn new(bank: &Bank, seed: u32) -> Result<BlendSurface> {
+        let h = &bank.header;
+        if h.rule != Rule::Blend {
+            return Err(Error::Unsupported(format!("rule {:?} in a blend surface", h.rule)));
+        }
+        bank.validate("given to BlendSurface")?;
+        let c = h.channels;
+        let levels = h
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(l, info)| {
+                let mut mean = [0.0f32; 4];
+                let mut inv_sigma = [0.0f32; 4];
+                for ch in 0..c {
+                    mean[ch] = info.mean[ch] as f32;
+                    inv_sigma[ch] = if info.sigma[ch] > 1e-12 { (1.0 / info.sigma[ch]) as f32 } else { 0.0 };
+                }
+                let [w, ht] = info.size;
+                Level {
+                    w,
+                    wmask: w as i64 - 1,
+                    hmask: ht as i64 - 1,
+                    scale: 0.5f64.powi(l as i32),
+                    centre: ((1u64 << l) as f64 - 1.0) / 2.0,
+                    tile_stride: w * ht * c,
+                    texels: bank.texels[l].clone(),
+                    mean,
+                    inv_sigma,
+                    lut: bank.luts[l].clone(),
+                }
+            })
+            .collect();
+        let e = h.triangle_edge;
+        Ok(BlendSurface {
+            seed,
+            channels: c,
+            tiles: h.tiles as u32,
+            levels,
+            edge: e,
+            skew_a: 1.0 / e,
+            skew_b: 1.0 / (SQRT3 * e),
+            skew_c: 2.0 / (SQRT3 * e),
+            offset_mask_x: h.tile_size[0] as i64 - 1,
+            offset_mask_y: h.tile_size[1] as i64 - 1,
+            lut_size: h.lut_size,
+            z_range: h.lut_z_range as f32,
+        })
+    }
+
+    /// Triangle edge length E in pixels.
+    pub fn triangle_edge(&self) -> f64 {
+        self.edge
+    }
+
+    /// The triangle that contains (x, y): skewed cell (i, j) and which half. Pixels with
+    /// different ids lie in different triangles (used by seam scores).
+    pub fn triangle_id(&self, x: f64, y: f64) -> (i64, i64, bool) {
+        let (i, j, lower, _) = self.triangle(x, y);
+        (i, j, lower)
+    }
+
+    /// Skewed cell, half (true = the one holding the cell's origin) and barycentric
+    /// weights of the three vertices (ALGORITHMS.md §3).
+    #[inline(always)]
+    fn triangle(&self, x: f64, y: f64) -> (i64, i64, bool, [f32; 3]) {
+        let sy = y * self.skew_c;
+        let sx = x * self.skew_a - y * self.skew_b;
+        let (bx, by) = (sx.floor(), sy.floor());
+        let (fx, fy) = (sx - bx, sy - by);
+        let z = 1.0 - fx - fy;
+        if z > 0.0 {
+            (bx as i64, by as i64, true, [z as f32, fy as f32, fx as f32])
+        } else {
+            (bx as i64, by as i64, false, [(-z) as f32, (1.0 - fy) as f32, (1.0 - fx) as f32])
+        }
+    }
+
+    /// Hashed patch and offset of each vertex of a triangle.
+    #[inline(always)]
+    fn vertices(&self, i: i64, j: i64, lower: bool) -> [Vertex; 3] {
+        let (i1, j1) = (i.wrapping_add(1), j.wrapping_add(1));
+        let pts = if lower { [(i, j), (i, j1), (i1, j)] } else { [(i1, j1), (i1, j), (i, j1)] };
+        pts.map(|(vi, vj)| {
+            let h = hash_cell(self.seed, vi, vj, 0);
+            Vertex {
+                tile: h[0] % self.tiles,
+                ox: h[1] as i64 & self.offset_mask_x,
+                oy: h[2] as i64 & self.offset_mask_y,
+            }
+        })
+    }
+
+    /// Level index and blend weight toward the next level for a footprint (trilinear
+    /// between the two levels that bracket log2(footprint)).
+    #[inline(always)]
+    fn level_of(&self, footprint: f64) -> (usize, f32) {
+        let top = self.levels.len() - 1;
+        if !(footprint > 1.0) || top == 0 {
+            return (0, 0.0);
+        }
+        let lambda = footprint.log2().min(top as f64);
+        let l0 = lambda.floor() as usize;
+        if l0 >= top {
+            (top, 0.0)
+        } else {
+            (l0, (lambda - l0 as f64) as f32)
+        }
+    }
+
+    /// The sample at (x, y) from level `l0` (blended toward `l0 + 1` by `t`).
+    #[inline(always)]
+    fn sample_cached<const C: usize>(
+        &self,
+        x: f64,
+        y: f64,
+        l0: usize,
+        t: f32,
+        cache: &mut VertexCache,
+        out: &mut [f32],
+    ) {
+        if !(x.is_finite() && y.is_finite()) {
+            out[..C].fill(f32::NAN);
+            return;
+        }
+        let (i, j, lower, w) = self.triangle(x, y);
+        if !cache.valid || cache.key != (i, j, lower) {
+            cache.verts = self.vertices(i, j, lower);
+            cache.key = (i, j, lower);
+            cache.valid = true;
+        }
+        let mut a = [0.0f32; C];
+        self.eval_level::<C>(l0, x, y, &cache.verts, &w, &mut a);
+        if t > 0.0 {
+            let mut b = [0.0f32; C];
+            self.eval_level::<C>(l0 + 1, x, y, &cache.verts, &w, &mut b);
+            for c in 0..C {
+                a[c] += (b[c] - a[c]) * t;
+            }
+        }
+        out[..C].copy_from_slice(&a);
+    }
+
+    /// Blend of the three vertices' patches at level `l`, mapped through T⁻¹.
+    #[inline(always)]
+    fn eval_level<const C: usize>(
+        &self,
+        l: usize,
+        x: f64,
+        y: f64,
+        verts: &[Vertex; 3],
+        w: &[f32; 3],
+        out: &mut [f32; C],
+    ) {
+        let lv = &self.levels[l];
+        let (xf, yf) = (x.floor(), y.floor());
+        let (xi, yi) = (xf as i64, yf as i64);
+        let (fx, fy) = (x - xf, y - yf);
+        let mut g = [0.0f32; C];
+        for (v, &wk) in verts.iter().zip(w) {
+            let (xr, yr) = (xi.wrapping_add(v.ox), yi.wrapping_add(v.oy));
+            if l == 0 {
+                bilinear::<C>(lv, v.tile, xr, yr, fx as f32, fy as f32, wk, &mut g);
+            } else {
+                // Reduce modulo the level-0 period first so the f64 stays small and exact.
+                let px = ((xr & self.offset_mask_x) as f64 + fx - lv.centre) * lv.scale;
+                let py = ((yr & self.offset_mask_y) as f64 + fy - lv.centre) * lv.scale;
+                let (ix, iy) = (px.floor(), py.floor());
+                bilinear::<C>(lv, v.tile, ix as i64, iy as i64, (px - ix) as f32, (py - iy) as f32, wk, &mut g);
+            }
+        }
+        // Variance-preserving blend: μ + Σ wᵢ(Gᵢ − μ) / √(Σ wᵢ²).
+        let norm = 1.0 / (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        let wsum = w[0] + w[1] + w[2];
+        let n = self.lut_size;
+        for c in 0..C {
+            let z = (g[c] - lv.mean[c] * wsum) * lv.inv_sigma[c] * norm;
+            out[c] = lut_eval(&lv.lut[c * n..(c + 1) * n], z, self.z_range);
+        }
+    }
+
+    fn sample_c<const C: usize>(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        let (l0, t) = self.level_of(footprint);
+        self.sample_cached::<C>(x, y, l0, t, &mut VertexCache::default(), out);
+    }
+
+    fn fill_rows_c<const C: usize>(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let (l0, t) = self.level_of(region.step);
+        let mut cache = VertexCache::default();
+        for (r, row) in rows.enumerate() {
+            let y = region.y_at(row);
+            let line = &mut out[r * region.width * C..(r + 1) * region.width * C];
+            for (col, px) in line.chunks_exact_mut(C).enumerate() {
+                self.sample_cached::<C>(region.x_at(col), y, l0, t, &mut cache, px);
+            }
+        }
+    }
+}
+
+/// Adds `weight ×` the bilinear interpolation of tile `tile` at texel (ix + tx, iy + ty)
+/// (periodic wrap) to `acc`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn bilinear<const C: usize>(
+    lv: &Level,
+    tile: u32,
+    ix: i64,
+    iy: i64,
+    tx: f32,
+    ty: f32,
+    weight: f32,
+    acc: &mut [f32; C],
+) {
+    let (x0, x1) = ((ix & lv.wmask) as usize, (ix.wrapping_add(1) & lv.wmask) as usize);
+    let (y0, y1) = ((iy & lv.hmask) as usize, (iy.wrapping_add(1) & lv.hmask) as usize);
+    let base = tile as usize * lv.tile_stride;
+    let (r0, r1) = (base + y0 * lv.w * C, base + y1 * lv.w * C);
+    let t = &lv.texels;
+    for c in 0..C {
+        let (a, b) = (t[r0 + x0 * C + c], t[r0 + x1 * C + c]);
+        let (d, e) = (t[r1 + x0 * C + c], t[r1 + x1 * C + c]);
+        let top = a + (b - a) * tx;
+        let bottom = d + (e - d) * tx;
+        acc[c] += weight * (top + (bottom - top) * ty);
+    }
+}
+
+impl Surface for BlendSurface {
+    fn channels(&self) -> usize {
+        self.channels
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        match self.channels {
+            1 => self.sample_c::<1>(x, y, footprint, out),
+            2 => self.sample_c::<2>(x, y, footprint, out),
+            3 => self.sample_c::<3>(x, y, footprint, out),
+            _ => self.sample_c::<4>(x, y, footprint, out),
+        }
+    }
+
+    fn height(&self, x: f64, y: f64) -> f32 {
+        let mut buf = [0.0f32; 4];
+        self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
+        buf[0]
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        match self.channels {
+            1 => self.fill_rows_c::<1>(region, rows, out),
+            2 => self.fill_rows_c::<2>(region, rows, out),
+            3 => self.fill_rows_c::<3>(region, rows, out),
+            _ => self.fill_rows_c::<4>(region, rows, out),
+        }
+    }
+}

@@ -1,0 +1,223 @@
+//! The runtime: the [`Surface`] trait, [`Region`]s, and parallel, split-invariant fills.
+//!
+//! Contracts every surface keeps (DESIGN.md, "Core contracts"):
+//! - **constant time**: a sample costs the same at x = 1e12 as at x = 0;
+//! - **determinism**: the value at (x, y) depends only on (bank or model, seed, x, y),
+//!   so filling a region in pieces, in any order, on any number of threads gives the
+//!   same bits;
+//! - coordinates are surface pixels; non-finite coordinates give NaN, never a panic.
+
+mod blend;
+
+use std::ops::Range;
+
+pub use blend::BlendSurface;
+
+use crate::error::{Error, Result};
+
+/// A rectangle of samples on a regular grid: pixel (col, row) of the region lies at
+/// `(x + (col0 + col)·step, y + (row0 + row)·step)`.
+///
+/// The origin (x, y) and step are shared by every sub-region made with
+/// [`Region::sub`], which only moves the integer offsets (col0, row0): a split region
+/// computes exactly the coordinates of the whole, bit for bit, whatever the step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Region {
+    /// Origin x, in surface pixels.
+    pub x: f64,
+    /// Origin y, in surface pixels.
+    pub y: f64,
+    /// Distance between neighbouring samples, in surface pixels (> 0). Above 1 the
+    /// surface is read from prefiltered mip levels.
+    pub step: f64,
+    /// Column offset from the origin, in samples.
+    pub col0: i64,
+    /// Row offset from the origin, in samples.
+    pub row0: i64,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+}
+
+impl Region {
+    /// A `width × height` region with its first sample at (x, y) and step 1.
+    pub fn new(x: f64, y: f64, width: usize, height: usize) -> Region {
+        Region {
+            x,
+            y,
+            step: 1.0,
+            col0: 0,
+            row0: 0,
+            width,
+            height,
+        }
+    }
+
+    /// The same region sampled every `step` pixels.
+    pub fn with_step(mut self, step: f64) -> Region {
+        self.step = step;
+        self
+    }
+
+    /// Checks that the region can be filled: finite origin, positive finite step,
+    /// non-zero size.
+    pub fn validate(&self) -> Result<()> {
+        if !self.x.is_finite() || !self.y.is_finite() {
+            return Err(Error::param("region origin", format!("({}, {})", self.x, self.y), "finite coordinates"));
+        }
+        if !(self.step.is_finite() && self.step > 0.0) {
+            return Err(Error::param("step", self.step, "a positive number of pixels"));
+        }
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::param(
+                "region size",
+                format!("{}×{}", self.width, self.height),
+                "at least 1×1 samples",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The sub-rectangle of `width × height` samples starting at (col, row) of this one.
+    pub fn sub(&self, col: usize, row: usize, width: usize, height: usize) -> Result<Region> {
+        if col + width > self.width || row + height > self.height {
+            return Err(Error::param(
+                "sub-region",
+                format!("{width}×{height} at ({col}, {row})"),
+                format!("a rectangle inside {}×{}", self.width, self.height),
+            ));
+        }
+        Ok(Region {
+            col0: self.col0 + col as i64,
+            row0: self.row0 + row as i64,
+            width,
+            height,
+            ..*self
+        })
+    }
+
+    /// x coordinate of column `col`.
+    #[inline(always)]
+    pub fn x_at(&self, col: usize) -> f64 {
+        self.x + (self.col0 + col as i64) as f64 * self.step
+    }
+
+    /// y coordinate of row `row`.
+    #[inline(always)]
+    pub fn y_at(&self, row: usize) -> f64 {
+        self.y + (self.row0 + row as i64) as f64 * self.step
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// True when the region has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// An infinite surface that can be sampled anywhere in constant time.
+pub trait Surface: Send + Sync {
+    /// Values per sample: 1 for heights, 3 for RGB.
+    fn channels(&self) -> usize;
+
+    /// Samples at (x, y) with a square footprint of `footprint` pixels (1 = full
+    /// resolution, bilinear between texels; larger reads prefiltered levels). Writes
+    /// `channels()` values to `out`.
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]);
+
+    /// Samples at (x, y) at full resolution.
+    fn sample(&self, x: f64, y: f64, out: &mut [f32]) {
+        self.sample_footprint(x, y, 1.0, out);
+    }
+
+    /// Channel 0 at (x, y), full resolution.
+    fn height(&self, x: f64, y: f64) -> f32 {
+        let mut buf = [0.0f32; 4];
+        let c = self.channels().min(4);
+        self.sample(x, y, &mut buf[..c]);
+        buf[0]
+    }
+
+    /// Fills rows `rows` of `region` into `out` (those rows only, row-major,
+    /// interleaved channels). The single-threaded kernel behind [`Surface::fill`];
+    /// the default samples pixel by pixel with a footprint of `region.step`.
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let c = self.channels();
+        for (r, row) in rows.enumerate() {
+            let y = region.y_at(row);
+            for col in 0..region.width {
+                let at = (r * region.width + col) * c;
+                self.sample_footprint(region.x_at(col), y, region.step, &mut out[at..at + c]);
+            }
+        }
+    }
+
+    /// Fills `region` into `out` (row-major, interleaved channels) on all cores.
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        fill_parallel(self, region, out, default_threads())
+    }
+}
+
+/// Worker threads used by [`Surface::fill`]: the machine's available parallelism.
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Rows per work item of a parallel fill.
+const BAND_ROWS: usize = 8;
+
+/// Fills `region` on `threads` threads (crossbeam scoped workers taking bands of rows
+/// from a shared counter). Each sample is computed independently, so the result is
+/// the same bits for any thread count.
+pub fn fill_parallel<S: Surface + ?Sized>(
+    surface: &S,
+    region: &Region,
+    out: &mut [f32],
+    threads: usize,
+) -> Result<()> {
+    region.validate()?;
+    let c = surface.channels();
+    let expected = region
+        .len()
+        .checked_mul(c)
+        .ok_or_else(|| Error::Limits(format!("region {}×{}", region.width, region.height)))?;
+    if out.len() != expected {
+        return Err(Error::param(
+            "output buffer length",
+            out.len(),
+            format!("{expected} = {}×{}×{c}", region.width, region.height),
+        ));
+    }
+    let band_len = BAND_ROWS * region.width * c;
+    let bands: Vec<(usize, &mut [f32])> = out.chunks_mut(band_len).enumerate().collect();
+    let threads = threads.clamp(1, bands.len());
+    if threads == 1 {
+        for (b, chunk) in bands {
+            let start = b * BAND_ROWS;
+            surface.fill_rows(region, start..(start + BAND_ROWS).min(region.height), chunk);
+        }
+        return Ok(());
+    }
+    let queue = crossbeam::queue::ArrayQueue::new(bands.len());
+    for band in bands {
+        // Capacity equals the number of bands, so this cannot fail.
+        let _ = queue.push(band);
+    }
+    crossbeam::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|_| {
+                while let Some((b, chunk)) = queue.pop() {
+                    let start = b * BAND_ROWS;
+                    surface.fill_rows(region, start..(start + BAND_ROWS).min(region.height), chunk);
+                }
+            });
+        }
+    })
+    .map_err(|_| Error::Unsupported("a fill worker thread panicked".into()))?;
+    Ok(())
+}
