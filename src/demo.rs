@@ -1,0 +1,91 @@
+//! `surftile demo`: the main job on bundled data, with nothing to download.
+//!
+//! Bakes the bundled measured AFM map (`tiles/di-6.npy`, embedded in the binary),
+//! renders height maps near the origin, a billion pixels away and zoomed out, a shaded
+//! view, and the quality figures of the synthesis against the exemplar.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::analysis::level::level_plane;
+use crate::bake::Baker;
+use crate::error::{Error, Result};
+use crate::io::{Format, ReadOptions, read_image_bytes, write_atomically, write_heights};
+use crate::render::{render_region, render_to_file};
+use crate::stats::compare;
+use crate::stream::{BlendSurface, Region};
+
+/// The bundled exemplar: Bruker AFM height map `di-6` (512 × 512, heights in µm).
+const EXEMPLAR: &[u8] = include_bytes!("../tiles/di-6.npy");
+/// Its pixel spacing: a 10 µm scan over 512 pixels.
+const EXEMPLAR_SPACING_UM: f64 = 10.0 / 512.0;
+
+/// One file the demo wrote and how long it took.
+#[derive(Debug, Clone)]
+pub struct DemoStep {
+    /// What was made.
+    pub what: String,
+    /// Where.
+    pub path: PathBuf,
+    /// Seconds it took.
+    pub seconds: f64,
+}
+
+/// Runs the demo into `dir` (created if missing), reporting each step to `report` as it
+/// finishes.
+pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<DemoStep>> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut steps = Vec::new();
+    let mut step = |what: &str, path: PathBuf, start: Instant| {
+        let s = DemoStep {
+            what: what.to_string(),
+            path,
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        report(&s);
+        steps.push(s);
+    };
+
+    let t = Instant::now();
+    let mut image = read_image_bytes(EXEMPLAR, Format::Npy, "tiles/di-6.npy", &ReadOptions::default())?;
+    image.spacing_um = Some(EXEMPLAR_SPACING_UM);
+    let baker = Baker::builder().seed(1).build()?;
+    let bank = baker.bake(&image, "tiles/di-6.npy", &mut |_| {})?;
+    let bank_path = dir.join("di-6.bank");
+    bank.write(&bank_path)?;
+    step("bake: RPN bank of 8 tiles from the 512×512 AFM map di-6", bank_path, t);
+
+    let t = Instant::now();
+    let (mut exemplar, spacing) = baker.preprocess(&image, "di-6")?;
+    level_plane(&mut exemplar);
+    let ex_path = dir.join("exemplar.png");
+    write_heights(&ex_path, &exemplar, spacing)?;
+    step("exemplar after plane levelling (16-bit PNG)", ex_path, t);
+
+    let surface = BlendSurface::new(&bank, 0)?;
+    let renders = [
+        ("height, 1024×1024 at the origin (16-bit PNG)", "height-origin.png", Region::new(0.0, 0.0, 1024, 1024)),
+        ("height, 1024×1024 a billion pixels away (16-bit PNG)", "height-far.png", Region::new(1e9, -1e9, 1024, 1024)),
+        ("height, 1024×1024 zoomed out ×8 from mip levels (16-bit PNG)", "height-zoom8.png", Region::new(-4096.0, -4096.0, 1024, 1024).with_step(8.0)),
+    ];
+    for (what, name, region) in renders {
+        let t = Instant::now();
+        let path = dir.join(name);
+        render_to_file(&surface, &region, &path, false, spacing, &mut |_| {})?;
+        step(what, path, t);
+    }
+
+    let t = Instant::now();
+    let path = dir.join("shaded.png");
+    render_to_file(&surface, &Region::new(0.0, 0.0, 1024, 1024), &path, true, spacing, &mut |_| {})?;
+    step("shaded view of the origin render (Phong, 8-bit PNG)", path, t);
+
+    let t = Instant::now();
+    let render = render_region(&surface, &Region::new(0.0, 0.0, 1024, 1024), &mut |_| {})?;
+    let figures = compare(&exemplar, &render, Some(bank.header.triangle_edge as usize));
+    let json = serde_json::to_string_pretty(&figures).map_err(|e| Error::decode("stats", e.to_string()))?;
+    let path = dir.join("stats.json");
+    write_atomically(&path, |w| std::io::Write::write_all(w, json.as_bytes()).map_err(|e| Error::io(&path, e)))?;
+    step("quality figures, exemplar vs render (JSON)", path, t);
+    Ok(steps)
+}

@@ -1,0 +1,387 @@
+//! The `surftile` command line: parse, call the library, report errors in one line.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::error::{ContextKind, ContextValue, ErrorKind};
+use clap::{Parser, Subcommand};
+
+use surftile::analysis::level::level_plane;
+use surftile::analysis::missing::fill_missing;
+use surftile::analysis::resample::DownsampleFilter;
+use surftile::bake::{Baker, Leveling, Taper};
+use surftile::bank::{Bank, Method};
+use surftile::demo::run_demo;
+use surftile::io::{ReadOptions, parse_shape, read_image};
+use surftile::render::{checked_size, render_to_file};
+use surftile::stats::compare;
+use surftile::stream::{BlendSurface, Region, Surface};
+use surftile::{Error, Result};
+
+/// Infinite, deterministic surfaces from a small measured exemplar.
+#[derive(Parser)]
+#[command(name = "surftile", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Analyse an exemplar once and write a tile bank.
+    Bake {
+        /// Exemplar height map or image: .png, .tif/.tiff, .npy, or .raw/.f32 (with --raw-shape).
+        exemplar: PathBuf,
+        /// Analysis method.
+        #[arg(long, value_enum, default_value_t = Method::Rpn)]
+        method: Method,
+        /// Output bank file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Tile side in pixels (a power of two); default: the largest power of two that fits, at most 256.
+        #[arg(long)]
+        patch: Option<usize>,
+        /// Number of tiles in the bank.
+        #[arg(long, default_value_t = 8)]
+        bank_size: usize,
+        /// Pixel spacing of the exemplar in µm (overrides the file's).
+        #[arg(long)]
+        spacing: Option<f64>,
+        /// Seed of the random phases and crops.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Plane levelling: auto (height maps only), plane or none.
+        #[arg(long, value_enum, default_value_t = Leveling::Auto)]
+        level: Leveling,
+        /// Integer down-sampling factor to a coarser spacing.
+        #[arg(long, default_value_t = 1)]
+        downsample: usize,
+        /// Down-sampling filter: nearest (seed 000) or area.
+        #[arg(long, value_enum, default_value_t = FilterArg::Nearest)]
+        downsample_filter: FilterArg,
+        /// Fill missing (NaN) points smoothly instead of refusing the exemplar.
+        #[arg(long)]
+        fill_missing: bool,
+        /// Triangle edge of the blend grid in pixels; default: half the tile side.
+        #[arg(long)]
+        triangle_edge: Option<f64>,
+        /// How crops are made periodic before RPN/ADSN.
+        #[arg(long, value_enum, default_value_t = Taper::Hann)]
+        taper: Taper,
+        /// Shape of a raw f32 exemplar: WxH or WxHxC.
+        #[arg(long)]
+        raw_shape: Option<String>,
+    },
+    /// Render a region of the infinite surface to .png (16-bit), .tif (f32) or .npy (f32).
+    Render {
+        /// Bank file.
+        bank: PathBuf,
+        /// x of the first sample, in surface pixels.
+        #[arg(long, allow_negative_numbers = true)]
+        x: f64,
+        /// y of the first sample, in surface pixels.
+        #[arg(long, allow_negative_numbers = true)]
+        y: f64,
+        /// Width in samples.
+        #[arg(long, allow_negative_numbers = true)]
+        w: i64,
+        /// Height in samples.
+        #[arg(long, allow_negative_numbers = true)]
+        h: i64,
+        /// Distance between samples in pixels; above 1 reads prefiltered mip levels.
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+        step: f64,
+        /// Placement seed (which tile goes where).
+        #[arg(long, default_value_t = 0)]
+        seed: u32,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Write a Phong-shaded 8-bit PNG instead of heights.
+        #[arg(long)]
+        shade: bool,
+    },
+    /// Print the height at one point.
+    Sample {
+        /// Bank file.
+        bank: PathBuf,
+        /// x in surface pixels.
+        #[arg(allow_negative_numbers = true)]
+        x: f64,
+        /// y in surface pixels.
+        #[arg(allow_negative_numbers = true)]
+        y: f64,
+        /// Placement seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u32,
+    },
+    /// Describe a bank.
+    Info {
+        /// Bank file.
+        bank: PathBuf,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Quality figures of B (a synthesis) against A (an exemplar), as JSON.
+    Stats {
+        /// Exemplar height map.
+        a: PathBuf,
+        /// Synthesised height map.
+        b: PathBuf,
+        /// Cell size in pixels for the seam score of B.
+        #[arg(long)]
+        cell: Option<usize>,
+        /// Plane levelling of both maps before comparing.
+        #[arg(long, value_enum, default_value_t = Leveling::Plane)]
+        level: Leveling,
+        /// Fill missing (NaN) points smoothly instead of refusing a map.
+        #[arg(long)]
+        fill_missing: bool,
+        /// Shape of raw f32 inputs: WxH.
+        #[arg(long)]
+        raw_shape: Option<String>,
+    },
+    /// Bake the bundled exemplar and write a small gallery.
+    Demo {
+        /// Output folder.
+        #[arg(long, default_value = "surftile-demo")]
+        out_dir: PathBuf,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FilterArg {
+    Nearest,
+    Area,
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            return match e.kind() {
+                ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => {
+                    let _ = e.print();
+                    ExitCode::SUCCESS
+                }
+                ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+                    let _ = e.print();
+                    ExitCode::from(2)
+                }
+                _ => {
+                    eprintln!("error: {}", one_line(&e));
+                    ExitCode::from(2)
+                }
+            };
+        }
+    };
+    match run(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// clap's error as one line, with the accepted values when it knows them.
+fn one_line(e: &clap::Error) -> String {
+    let text = e.render().to_string();
+    let first = text.lines().next().unwrap_or("invalid arguments");
+    let mut line = first.trim_start_matches("error: ").to_string();
+    if let Some(ContextValue::Strings(values)) = e.get(ContextKind::ValidValue) {
+        line.push_str(&format!(" (expected one of: {})", values.join(", ")));
+    }
+    line.push_str("; see 'surftile --help'");
+    line
+}
+
+/// Progress on stderr: a rewritten line on a terminal, otherwise a line per quarter.
+fn progress_reporter(label: &'static str) -> impl FnMut(f64) {
+    let tty = std::io::stderr().is_terminal();
+    let mut last_quarter = 0;
+    move |done: f64| {
+        if tty {
+            eprint!("\r{label}: {:3.0}%", done * 100.0);
+            if done >= 1.0 {
+                eprintln!();
+            }
+        } else {
+            let quarter = (done * 4.0).floor() as i32;
+            if quarter > last_quarter {
+                last_quarter = quarter;
+                eprintln!("{label}: {:.0}%", done * 100.0);
+            }
+        }
+    }
+}
+
+fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
+    Ok(ReadOptions {
+        raw_shape: raw_shape.as_deref().map(parse_shape).transpose()?,
+    })
+}
+
+fn finite(name: &str, v: f64) -> Result<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Error::param(name, v, "a finite number"))
+    }
+}
+
+fn load_surface(bank: &Path, seed: u32) -> Result<(Bank, BlendSurface)> {
+    let bank = Bank::read(bank)?;
+    let surface = BlendSurface::new(&bank, seed)?;
+    Ok((bank, surface))
+}
+
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Bake {
+            exemplar,
+            method,
+            out,
+            patch,
+            bank_size,
+            spacing,
+            seed,
+            level,
+            downsample,
+            downsample_filter,
+            fill_missing,
+            triangle_edge,
+            taper,
+            raw_shape,
+        } => {
+            let filter = match downsample_filter {
+                FilterArg::Nearest => DownsampleFilter::Nearest,
+                FilterArg::Area => DownsampleFilter::Area,
+            };
+            let mut builder = Baker::builder()
+                .method(method)
+                .bank_size(bank_size)
+                .seed(seed)
+                .leveling(level)
+                .downsample(downsample, filter)
+                .fill_missing(fill_missing)
+                .taper(taper);
+            if let Some(p) = patch {
+                builder = builder.patch(p);
+            }
+            if let Some(s) = spacing {
+                builder = builder.spacing_um(s);
+            }
+            if let Some(e) = triangle_edge {
+                builder = builder.triangle_edge(e);
+            }
+            let baker = builder.build()?;
+            let start = Instant::now();
+            let image = read_image(&exemplar, &raw_options(&raw_shape)?)?;
+            let source = exemplar.display().to_string();
+            let bank = baker.bake(&image, &source, &mut |line| eprintln!("bake: {line}"))?;
+            bank.write(&out)?;
+            eprintln!("bake: wrote {} in {:.2} s", out.display(), start.elapsed().as_secs_f64());
+            Ok(())
+        }
+        Command::Render {
+            bank,
+            x,
+            y,
+            w,
+            h,
+            step,
+            seed,
+            out,
+            shade,
+        } => {
+            let region = Region::new(finite("x", x)?, finite("y", y)?, checked_size("w", w)?, checked_size("h", h)?)
+                .with_step(step);
+            region.validate()?;
+            let (bank, surface) = load_surface(&bank, seed)?;
+            let start = Instant::now();
+            render_to_file(&surface, &region, &out, shade, bank.header.spacing_um, &mut progress_reporter("render"))?;
+            eprintln!(
+                "render: wrote {} ({}×{} samples) in {:.2} s",
+                out.display(),
+                region.width,
+                region.height,
+                start.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        Command::Sample { bank, x, y, seed } => {
+            let (x, y) = (finite("x", x)?, finite("y", y)?);
+            let (_, surface) = load_surface(&bank, seed)?;
+            let mut v = vec![0.0f32; surface.channels()];
+            surface.sample(x, y, &mut v);
+            let text: Vec<String> = v.iter().map(|v| format!("{v}")).collect();
+            println!("{}", text.join(" "));
+            Ok(())
+        }
+        Command::Info { bank, json } => {
+            let bytes = std::fs::metadata(&bank).map(|m| m.len()).ok();
+            let b = Bank::read(&bank)?;
+            if json {
+                println!("{:#}", b.info_json(bytes));
+            } else {
+                let h = &b.header;
+                println!("bank        {}", bank.display());
+                println!("rule        {:?} (triangle edge {} px)", h.rule, h.triangle_edge);
+                println!("method      {}", h.method);
+                println!("tiles       {} of {}×{} px, {} channel(s), {} mip levels", h.tiles, h.tile_size[0], h.tile_size[1], h.channels, h.levels.len());
+                match h.spacing_um {
+                    Some(s) => println!("spacing     {s} µm per pixel"),
+                    None => println!("spacing     unknown"),
+                }
+                println!("exemplar    {} ({}×{})", h.exemplar.source, h.exemplar.width, h.exemplar.height);
+                println!("bake        {}", h.bake);
+            }
+            Ok(())
+        }
+        Command::Stats {
+            a,
+            b,
+            cell,
+            level,
+            fill_missing: fill,
+            raw_shape,
+        } => {
+            let options = raw_options(&raw_shape)?;
+            let load = |path: &Path| -> Result<surftile::Raster> {
+                let mut r = read_image(path, &options)?.raster.channel(0);
+                let what = path.display().to_string();
+                let missing = r.count_nan();
+                if missing > 0 {
+                    if !fill {
+                        return Err(Error::MissingData { what, count: missing, total: r.data.len() });
+                    }
+                    fill_missing(&mut r, &what)?;
+                }
+                if level != Leveling::None {
+                    level_plane(&mut r);
+                }
+                Ok(r)
+            };
+            if let Some(0) = cell {
+                return Err(Error::param("cell", 0, "a cell size of at least 1 pixel"));
+            }
+            let (ra, rb) = (load(&a)?, load(&b)?);
+            let figures = compare(&ra, &rb, cell);
+            println!("{}", serde_json::to_string_pretty(&figures).map_err(|e| Error::decode("stats", e.to_string()))?);
+            Ok(())
+        }
+        Command::Demo { out_dir } => {
+            let start = Instant::now();
+            println!("surftile demo: writing into {}/", out_dir.display());
+            run_demo(&out_dir, &mut |s| {
+                println!("  {:<62} {:>7.3} s  {}", s.what, s.seconds, s.path.display());
+            })?;
+            println!("done in {:.2} s", start.elapsed().as_secs_f64());
+            Ok(())
+        }
+    }
+}
