@@ -233,6 +233,18 @@ fn finite(name: &str, v: f64) -> Result<f64> {
     }
 }
 
+/// Refuses an output path whose folder does not exist, before any work is done.
+fn check_output(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::param("out", path.display(), format!("a file in an existing folder ({} does not exist)", dir.display())));
+    }
+    Ok(())
+}
+
 fn load_surface(bank: &Path, seed: u32) -> Result<(Bank, BlendSurface)> {
     let bank = Bank::read(bank)?;
     let surface = BlendSurface::new(&bank, seed)?;
@@ -279,6 +291,7 @@ fn run(command: Command) -> Result<()> {
                 builder = builder.triangle_edge(e);
             }
             let baker = builder.build()?;
+            check_output(&out)?;
             let start = Instant::now();
             let image = read_image(&exemplar, &raw_options(&raw_shape)?)?;
             let source = exemplar.display().to_string();
@@ -301,6 +314,7 @@ fn run(command: Command) -> Result<()> {
             let region = Region::new(finite("x", x)?, finite("y", y)?, checked_size("w", w)?, checked_size("h", h)?)
                 .with_step(step);
             region.validate()?;
+            check_output(&out)?;
             let (bank, surface) = load_surface(&bank, seed)?;
             let start = Instant::now();
             render_to_file(&surface, &region, &out, shade, bank.header.spacing_um, &mut progress_reporter("render"))?;
@@ -330,7 +344,7 @@ fn run(command: Command) -> Result<()> {
             } else {
                 let h = &b.header;
                 println!("bank        {}", bank.display());
-                println!("rule        {:?} (triangle edge {} px)", h.rule, h.triangle_edge);
+                println!("rule        {} (triangle edge {} px)", h.rule, h.triangle_edge);
                 println!("method      {}", h.method);
                 println!("tiles       {} of {}×{} px, {} channel(s), {} mip levels", h.tiles, h.tile_size[0], h.tile_size[1], h.channels, h.levels.len());
                 match h.spacing_um {

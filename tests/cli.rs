@@ -1,0 +1,230 @@
+//! The CLI binary: happy paths and every bad input of issue 2's acceptance list. Each bad
+//! input must give exactly one error line, a non-zero exit, no panic, and leave no
+//! output file (nor temporary file) behind.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use surftile::Raster;
+use surftile::bank::Bank;
+use surftile::io::write_heights;
+use surftile::stream::{BlendSurface, Surface};
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn surftile(dir: &Path, args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_surftile"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run surftile");
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn exemplar() -> String {
+    common::repo("tiles/di-6.npy").display().to_string()
+}
+
+/// Bakes the bundled exemplar into `dir/good.bank` through the CLI.
+fn bake_good(dir: &Path) -> PathBuf {
+    let r = surftile(dir, &["bake", &exemplar(), "--method", "rpn", "--out", "good.bank", "--seed", "3", "--bank-size", "4"]);
+    assert_eq!(r.code, 0, "bake failed: {}", r.stderr);
+    dir.join("good.bank")
+}
+
+/// The bad-input contract: one line, non-zero, no panic, nothing left behind.
+fn assert_clean_failure(dir: &Path, r: &Run, expect_in_message: &str, output: &str) {
+    assert_ne!(r.code, 0, "expected failure, stderr: {}", r.stderr);
+    assert!(!r.stderr.contains("panicked"), "panic: {}", r.stderr);
+    let lines: Vec<&str> = r.stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {:?}", lines);
+    assert!(lines[0].starts_with("error: "), "{}", lines[0]);
+    assert!(
+        lines[0].to_lowercase().contains(&expect_in_message.to_lowercase()),
+        "message {:?} lacks {expect_in_message:?}",
+        lines[0]
+    );
+    assert!(!dir.join(output).exists(), "{output} was left behind");
+    let leftovers: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".part-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+#[test]
+fn truncated_bank_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = bake_good(dir.path());
+    let bytes = std::fs::read(&good).unwrap();
+    std::fs::write(dir.path().join("cut.bank"), &bytes[..bytes.len() / 2]).unwrap();
+    let r = surftile(dir.path(), &["render", "cut.bank", "--x", "0", "--y", "0", "--w", "16", "--h", "16", "--out", "o.png"]);
+    assert_clean_failure(dir.path(), &r, "bank cut.bank", "o.png");
+}
+
+#[test]
+fn bank_with_one_flipped_byte_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = bake_good(dir.path());
+    let mut bytes = std::fs::read(&good).unwrap();
+    let at = bytes.len() * 2 / 3;
+    bytes[at] ^= 0x10;
+    std::fs::write(dir.path().join("flip.bank"), &bytes).unwrap();
+    let r = surftile(dir.path(), &["sample", "flip.bank", "1", "2"]);
+    assert_clean_failure(dir.path(), &r, "checksum", "none");
+    let r = surftile(dir.path(), &["render", "flip.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--out", "o.npy"]);
+    assert_clean_failure(dir.path(), &r, "checksum", "o.npy");
+}
+
+#[test]
+fn empty_png_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("empty.png"), b"").unwrap();
+    let r = surftile(dir.path(), &["bake", "empty.png", "--out", "b.bank"]);
+    assert_clean_failure(dir.path(), &r, "empty.png", "b.bank");
+    // A PNG signature with nothing after it is no better.
+    std::fs::write(dir.path().join("sig.png"), b"\x89PNG\r\n\x1a\n").unwrap();
+    let r = surftile(dir.path(), &["bake", "sig.png", "--out", "b.bank"]);
+    assert_clean_failure(dir.path(), &r, "not a valid PNG", "b.bank");
+}
+
+#[test]
+fn one_pixel_image_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = Raster::from_vec(1, 1, 1, vec![0.5]).unwrap();
+    write_heights(&dir.path().join("one.png"), &one, None).unwrap();
+    let r = surftile(dir.path(), &["bake", "one.png", "--out", "b.bank"]);
+    assert_clean_failure(dir.path(), &r, "1×1", "b.bank");
+}
+
+#[test]
+fn nan_npy_without_fill_missing_is_refused_and_filled_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut data: Vec<f32> = (0..64 * 64).map(|i| ((i * 7919) % 101) as f32 * 0.01).collect();
+    data[100] = f32::NAN;
+    data[2000] = f32::NAN;
+    // write_heights refuses NaN, so write the .npy by hand: header then f32 data.
+    let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (64, 64), }";
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    let pad = 64 - (10 + header.len() + 1) % 64;
+    let full = format!("{header}{}\n", " ".repeat(pad));
+    bytes.extend_from_slice(&(full.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(full.as_bytes());
+    for v in &data {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(dir.path().join("holes.npy"), &bytes).unwrap();
+    let r = surftile(dir.path(), &["bake", "holes.npy", "--out", "b.bank"]);
+    assert_clean_failure(dir.path(), &r, "2 of 4096 height points are missing", "b.bank");
+    let r = surftile(dir.path(), &["bake", "holes.npy", "--out", "b.bank", "--fill-missing"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(dir.path().join("b.bank").exists());
+}
+
+#[test]
+fn zero_and_negative_sizes_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    bake_good(dir.path());
+    for (flag, value, msg) in [("--w", "0", "invalid w = 0"), ("--w", "-5", "invalid w = -5"), ("--h", "-1", "invalid h = -1")] {
+        let mut args = vec!["render", "good.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--out", "o.png"];
+        let at = args.iter().position(|a| *a == flag).unwrap();
+        args[at + 1] = value;
+        let r = surftile(dir.path(), &args);
+        assert_clean_failure(dir.path(), &r, msg, "o.png");
+    }
+    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--step", "-2", "--out", "o.png"]);
+    assert_clean_failure(dir.path(), &r, "invalid step", "o.png");
+    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "100000", "--h", "100000", "--out", "o.png"]);
+    assert_clean_failure(dir.path(), &r, "too large", "o.png");
+    let r = surftile(dir.path(), &["sample", "good.bank", "NaN", "0"]);
+    assert_clean_failure(dir.path(), &r, "invalid x", "none");
+}
+
+#[test]
+fn unknown_method_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = surftile(dir.path(), &["bake", &exemplar(), "--method", "magic", "--out", "b.bank"]);
+    assert_clean_failure(dir.path(), &r, "expected one of: rpn, adsn", "b.bank");
+}
+
+#[test]
+fn missing_file_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = surftile(dir.path(), &["bake", "nowhere.png", "--out", "b.bank"]);
+    assert_clean_failure(dir.path(), &r, "nowhere.png", "b.bank");
+    let r = surftile(dir.path(), &["render", "nowhere.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--out", "o.png"]);
+    assert_clean_failure(dir.path(), &r, "nowhere.bank", "o.png");
+}
+
+#[test]
+fn bake_info_render_sample_and_stats_work_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let bank_path = bake_good(dir.path());
+    let r = surftile(dir.path(), &["info", "good.bank", "--json"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let info: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(info["rule"], "blend");
+    assert_eq!(info["method"], "rpn");
+    assert_eq!(info["channels"], 1);
+    assert_eq!(info["tiles"], 4);
+    assert_eq!(info["tile_size"], serde_json::json!([256, 256]));
+    assert_eq!(info["seed"], 3);
+    assert_eq!(info["lattice"][0], serde_json::json!([128.0, 0.0]));
+    assert!(info["spacing_um"].is_null(), "a bare .npy has no spacing");
+
+    // sample prints what the library computes.
+    let r = surftile(dir.path(), &["sample", "good.bank", "-1234.5", "99.25", "--seed", "9"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let printed: f32 = r.stdout.trim().parse().unwrap();
+    let bank = Bank::read(&bank_path).unwrap();
+    let expected = BlendSurface::new(&bank, 9).unwrap().height(-1234.5, 99.25);
+    assert_eq!(printed, expected);
+
+    // render to each format; .npy holds the library's samples exactly.
+    for out in ["r.png", "r.tiff", "r.npy"] {
+        let r = surftile(dir.path(), &["render", "good.bank", "--x", "-10", "--y", "5", "--w", "64", "--h", "48", "--out", out]);
+        assert_eq!(r.code, 0, "{out}: {}", r.stderr);
+    }
+    let npy = surftile::io::read_image(&dir.path().join("r.npy"), &Default::default()).unwrap().raster;
+    assert_eq!((npy.width, npy.height), (64, 48));
+    let s = BlendSurface::new(&bank, 0).unwrap();
+    assert_eq!(npy.get(3, 2, 0), s.height(-7.0, 7.0));
+    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "32", "--h", "32", "--shade", "--out", "s.png"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "32", "--h", "32", "--shade", "--out", "s.npy"]);
+    assert_clean_failure(dir.path(), &r, "with --shade", "s.npy");
+
+    let r = surftile(dir.path(), &["stats", &exemplar(), "r.npy", "--cell", "16"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let stats: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    for key in ["w1", "psd_error", "seam_score"] {
+        assert!(stats[key].as_f64().is_some(), "{key} missing in {stats}");
+    }
+    assert!(stats["a"]["sal"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn demo_writes_the_gallery() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = surftile(dir.path(), &["demo"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    for f in ["di-6.bank", "exemplar.png", "height-origin.png", "height-far.png", "height-zoom8.png", "shaded.png", "stats.json"] {
+        let p = dir.path().join("surftile-demo").join(f);
+        assert!(p.metadata().map(|m| m.len() > 0).unwrap_or(false), "{f} missing");
+        assert!(r.stdout.contains(f), "demo output does not mention {f}");
+    }
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("surftile-demo/stats.json")).unwrap()).unwrap();
+    assert!(stats["w1"].as_f64().unwrap() < 0.05, "{stats}");
+}
