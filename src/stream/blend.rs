@@ -19,6 +19,19 @@ use crate::hash::hash_cell;
 
 const SQRT3: f64 = 1.732_050_807_568_877_2;
 
+/// ⌊x⌋ as an integer and x − ⌊x⌋, for finite x.
+///
+/// Equal to `(x.floor() as i64, x - x.floor())` wherever ⌊x⌋ fits in an i64 (beyond
+/// 2⁵³ every f64 is an integer and the fraction is 0 either way), but built from a
+/// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call,
+/// which cost a third of a sample.
+#[inline(always)]
+fn floor_split(x: f64) -> (i64, f64) {
+    let t = x as i64;
+    let i = if (t as f64) > x { t - 1 } else { t };
+    (i, x - i as f64)
+}
+
 /// A surface sampled from a blend bank ([`Rule::Blend`]) with a placement seed.
 pub struct BlendSurface {
     seed: u32,
@@ -148,13 +161,12 @@ impl BlendSurface {
     fn triangle(&self, x: f64, y: f64) -> (i64, i64, bool, [f32; 3]) {
         let sy = y * self.skew_c;
         let sx = x * self.skew_a - y * self.skew_b;
-        let (bx, by) = (sx.floor(), sy.floor());
-        let (fx, fy) = (sx - bx, sy - by);
+        let ((bx, fx), (by, fy)) = (floor_split(sx), floor_split(sy));
         let z = 1.0 - fx - fy;
         if z > 0.0 {
-            (bx as i64, by as i64, true, [z as f32, fy as f32, fx as f32])
+            (bx, by, true, [z as f32, fy as f32, fx as f32])
         } else {
-            (bx as i64, by as i64, false, [(-z) as f32, (1.0 - fy) as f32, (1.0 - fx) as f32])
+            (bx, by, false, [(-z) as f32, (1.0 - fy) as f32, (1.0 - fx) as f32])
         }
     }
 
@@ -166,7 +178,9 @@ impl BlendSurface {
         pts.map(|(vi, vj)| {
             let h = hash_cell(self.seed, vi, vj, 0);
             Vertex {
-                tile: h[0] % self.tiles,
+                // A mask when K is a power of two (the default 8): a division costs more
+                // than the rest of the vertex. Both give h mod K.
+                tile: if self.tiles.is_power_of_two() { h[0] & (self.tiles - 1) } else { h[0] % self.tiles },
                 ox: h[1] as i64 & self.offset_mask_x,
                 oy: h[2] as i64 & self.offset_mask_y,
             }
@@ -211,16 +225,7 @@ impl BlendSurface {
             cache.key = (i, j, lower);
             cache.valid = true;
         }
-        let mut a = [0.0f32; C];
-        self.eval_level::<C>(l0, x, y, &cache.verts, &w, &mut a);
-        if t > 0.0 {
-            let mut b = [0.0f32; C];
-            self.eval_level::<C>(l0 + 1, x, y, &cache.verts, &w, &mut b);
-            for c in 0..C {
-                a[c] += (b[c] - a[c]) * t;
-            }
-        }
-        out[..C].copy_from_slice(&a);
+        self.blend_levels::<C>(x, y, l0, t, &cache.verts, &w, out);
     }
 
     /// Blend of the three vertices' patches at level `l`, mapped through T⁻¹.
@@ -235,9 +240,7 @@ impl BlendSurface {
         out: &mut [f32; C],
     ) {
         let lv = &self.levels[l];
-        let (xf, yf) = (x.floor(), y.floor());
-        let (xi, yi) = (xf as i64, yf as i64);
-        let (fx, fy) = (x - xf, y - yf);
+        let ((xi, fx), (yi, fy)) = (floor_split(x), floor_split(y));
         let mut g = [0.0f32; C];
         for (v, &wk) in verts.iter().zip(w) {
             let (xr, yr) = (xi.wrapping_add(v.ox), yi.wrapping_add(v.oy));
@@ -247,8 +250,8 @@ impl BlendSurface {
                 // Reduce modulo the level-0 period first so the f64 stays small and exact.
                 let px = ((xr & self.offset_mask_x) as f64 + fx - lv.centre) * lv.scale;
                 let py = ((yr & self.offset_mask_y) as f64 + fy - lv.centre) * lv.scale;
-                let (ix, iy) = (px.floor(), py.floor());
-                bilinear::<C>(lv, v.tile, ix as i64, iy as i64, (px - ix) as f32, (py - iy) as f32, wk, &mut g);
+                let ((ix, tx), (iy, ty)) = (floor_split(px), floor_split(py));
+                bilinear::<C>(lv, v.tile, ix, iy, tx as f32, ty as f32, wk, &mut g);
             }
         }
         // Variance-preserving blend: μ + Σ wᵢ(Gᵢ − μ) / √(Σ wᵢ²).
@@ -262,8 +265,39 @@ impl BlendSurface {
     }
 
     fn sample_c<const C: usize>(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        if !(x.is_finite() && y.is_finite()) {
+            out[..C].fill(f32::NAN);
+            return;
+        }
         let (l0, t) = self.level_of(footprint);
-        self.sample_cached::<C>(x, y, l0, t, &mut VertexCache::default(), out);
+        let (i, j, lower, w) = self.triangle(x, y);
+        let verts = self.vertices(i, j, lower);
+        self.blend_levels::<C>(x, y, l0, t, &verts, &w, out);
+    }
+
+    /// Level `l0` blended toward `l0 + 1` by `t`, for a triangle already resolved.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn blend_levels<const C: usize>(
+        &self,
+        x: f64,
+        y: f64,
+        l0: usize,
+        t: f32,
+        verts: &[Vertex; 3],
+        w: &[f32; 3],
+        out: &mut [f32],
+    ) {
+        let mut a = [0.0f32; C];
+        self.eval_level::<C>(l0, x, y, verts, w, &mut a);
+        if t > 0.0 {
+            let mut b = [0.0f32; C];
+            self.eval_level::<C>(l0 + 1, x, y, verts, w, &mut b);
+            for c in 0..C {
+                a[c] += (b[c] - a[c]) * t;
+            }
+        }
+        out[..C].copy_from_slice(&a);
     }
 
     fn fill_rows_c<const C: usize>(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
@@ -298,9 +332,19 @@ fn bilinear<const C: usize>(
     let base = tile as usize * lv.tile_stride;
     let (r0, r1) = (base + y0 * lv.w * C, base + y1 * lv.w * C);
     let t = &lv.texels;
+    debug_assert!(r1.max(r0) + lv.w * C <= t.len() && (tile as usize) < t.len() / lv.tile_stride);
     for c in 0..C {
-        let (a, b) = (t[r0 + x0 * C + c], t[r0 + x1 * C + c]);
-        let (d, e) = (t[r1 + x0 * C + c], t[r1 + x1 * C + c]);
+        // SAFETY: `tile` < K (masked or reduced modulo K in `vertices`), x0, x1 ≤ w − 1
+        // and y0, y1 ≤ h − 1 (masked), c < C, and `Bank::validate` checked that each
+        // level holds exactly K·w·h·C texels, so every index is below `t.len()`.
+        let (a, b, d, e) = unsafe {
+            (
+                *t.get_unchecked(r0 + x0 * C + c),
+                *t.get_unchecked(r0 + x1 * C + c),
+                *t.get_unchecked(r1 + x0 * C + c),
+                *t.get_unchecked(r1 + x1 * C + c),
+            )
+        };
         let top = a + (b - a) * tx;
         let bottom = d + (e - d) * tx;
         acc[c] += weight * (top + (bottom - top) * ty);
