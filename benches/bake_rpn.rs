@@ -1,1 +1,41 @@
-fn main() {}
+//! Random phase noise of 512², 1024² and 2048² exemplars (target: 1024² ≤ 150 ms), next
+//! to the bare 2-D FFT round trip of the same size (forward + inverse, the floor of any
+//! FFT-based method), and the whole bake of the bundled 512² map for reference.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use rand::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use surftile::analysis::rpn::random_phase_noise;
+use surftile::bake::Baker;
+use surftile::fft::{Fft2, forward_real, inverse_real};
+use surftile::io::{Format, ReadOptions, read_image_bytes};
+
+fn bench(c: &mut Criterion) {
+    let mut g = c.benchmark_group("bake_rpn");
+    g.sample_size(10).measurement_time(Duration::from_secs(6));
+    for side in [512usize, 1024, 2048] {
+        let plane: Vec<f64> = (0..side * side).map(|i| ((i * 7919) % 1013) as f64 * 0.001).collect();
+        let planes = vec![plane.clone()];
+        g.bench_function(format!("rpn_{side}"), |b| {
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+            b.iter(|| random_phase_noise(black_box(&planes), side, side, &mut rng))
+        });
+        g.bench_function(format!("baseline_fft_roundtrip_{side}"), |b| {
+            let mut plan = Fft2::new(side, side);
+            b.iter(|| {
+                let spec = forward_real(&mut plan, black_box(&plane));
+                inverse_real(&mut plan, spec)
+            })
+        });
+    }
+    let image = read_image_bytes(include_bytes!("../tiles/di-6.npy"), Format::Npy, "di-6", &ReadOptions::default()).unwrap();
+    let baker = Baker::builder().seed(1).build().unwrap();
+    g.bench_function("whole_bake_di6_512_k8", |b| b.iter(|| baker.bake(black_box(&image), "di-6", &mut |_| {}).unwrap()));
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,1 +1,53 @@
-fn main() {}
+//! `height()` at random coordinates near the origin and at |x| ~ 1e9 (the constant-time
+//! check: far / near ≤ 1.2), next to a naive baseline: one bilinear fetch from one
+//! 256² tile, the floor any tiled sampler pays.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use rand::{RngExt, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use surftile::bake::Baker;
+use surftile::io::{Format, ReadOptions, read_image_bytes};
+use surftile::stream::{BlendSurface, Surface};
+
+const N: usize = 4096;
+
+fn bench(c: &mut Criterion) {
+    let image = read_image_bytes(include_bytes!("../tiles/di-6.npy"), Format::Npy, "di-6", &ReadOptions::default()).unwrap();
+    let bank = Baker::builder().seed(1).bank_size(std::env::var("K").map(|k| k.parse().unwrap()).unwrap_or(8)).build().unwrap().bake(&image, "di-6", &mut |_| {}).unwrap();
+    let surface = BlendSurface::new(&bank, 3).unwrap();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
+    let near: Vec<(f64, f64)> = (0..N).map(|_| (rng.random_range(-1000.0..1000.0), rng.random_range(-1000.0..1000.0))).collect();
+    let far: Vec<(f64, f64)> = near.iter().map(|&(x, y)| (x + 1e9, y - 1e9)).collect();
+
+    let mut g = c.benchmark_group("sample");
+    g.throughput(Throughput::Elements(N as u64));
+    g.bench_function("height_near_0", |b| {
+        b.iter(|| near.iter().map(|&(x, y)| surface.height(black_box(x), black_box(y))).sum::<f32>())
+    });
+    g.bench_function("height_at_1e9", |b| {
+        b.iter(|| far.iter().map(|&(x, y)| surface.height(black_box(x), black_box(y))).sum::<f32>())
+    });
+    let tile = &bank.texels[0][..256 * 256];
+    g.bench_function("baseline_one_bilinear_fetch", |b| {
+        b.iter(|| {
+            near.iter()
+                .map(|&(x, y)| {
+                    let (x, y) = (black_box(x), black_box(y));
+                    let (xf, yf) = (x.floor(), y.floor());
+                    let (tx, ty) = ((x - xf) as f32, (y - yf) as f32);
+                    let (ix, iy) = (xf as i64 & 255, yf as i64 & 255);
+                    let at = |i: i64, j: i64| tile[((j & 255) * 256 + (i & 255)) as usize];
+                    let top = at(ix, iy) + (at(ix + 1, iy) - at(ix, iy)) * tx;
+                    let bottom = at(ix, iy + 1) + (at(ix + 1, iy + 1) - at(ix, iy + 1)) * tx;
+                    top + (bottom - top) * ty
+                })
+                .sum::<f32>()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -23,12 +23,13 @@ const SQRT3: f64 = 1.732_050_807_568_877_2;
 ///
 /// Equal to `(x.floor() as i64, x - x.floor())` wherever ⌊x⌋ fits in an i64 (beyond
 /// 2⁵³ every f64 is an integer and the fraction is 0 either way), but built from a
-/// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call,
-/// which cost a third of a sample.
+/// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call.
+/// The correction is arithmetic, not a branch: for random coordinates its sign is a coin
+/// flip, and each mispredicted branch flushes the overlap between consecutive samples.
 #[inline(always)]
 fn floor_split(x: f64) -> (i64, f64) {
     let t = x as i64;
-    let i = if (t as f64) > x { t - 1 } else { t };
+    let i = t - ((t as f64 > x) as i64);
     (i, x - i as f64)
 }
 
@@ -156,35 +157,47 @@ impl BlendSurface {
     }
 
     /// Skewed cell, half (true = the one holding the cell's origin) and barycentric
-    /// weights of the three vertices (ALGORITHMS.md §3).
+    /// weights of the three vertices (ALGORITHMS.md §3). Selects, not branches: which
+    /// half a random point falls in is a coin flip (see [`floor_split`]).
     #[inline(always)]
     fn triangle(&self, x: f64, y: f64) -> (i64, i64, bool, [f32; 3]) {
         let sy = y * self.skew_c;
         let sx = x * self.skew_a - y * self.skew_b;
         let ((bx, fx), (by, fy)) = (floor_split(sx), floor_split(sy));
         let z = 1.0 - fx - fy;
-        if z > 0.0 {
-            (bx, by, true, [z as f32, fy as f32, fx as f32])
-        } else {
-            (bx, by, false, [(-z) as f32, (1.0 - fy) as f32, (1.0 - fx) as f32])
-        }
+        let lower = z > 0.0;
+        let w0 = if lower { z } else { -z };
+        let w1 = if lower { fy } else { 1.0 - fy };
+        let w2 = if lower { fx } else { 1.0 - fx };
+        (bx, by, lower, [w0 as f32, w1 as f32, w2 as f32])
     }
 
     /// Hashed patch and offset of each vertex of a triangle.
     #[inline(always)]
     fn vertices(&self, i: i64, j: i64, lower: bool) -> [Vertex; 3] {
-        let (i1, j1) = (i.wrapping_add(1), j.wrapping_add(1));
-        let pts = if lower { [(i, j), (i, j1), (i1, j)] } else { [(i1, j1), (i1, j), (i, j1)] };
-        pts.map(|(vi, vj)| {
-            let h = hash_cell(self.seed, vi, vj, 0);
-            Vertex {
-                // A mask when K is a power of two (the default 8): a division costs more
-                // than the rest of the vertex. Both give h mod K.
-                tile: if self.tiles.is_power_of_two() { h[0] & (self.tiles - 1) } else { h[0] % self.tiles },
-                ox: h[1] as i64 & self.offset_mask_x,
-                oy: h[2] as i64 & self.offset_mask_y,
-            }
-        })
+        // Lower half: (i, j), (i, j+1), (i+1, j); upper: (i+1, j+1), (i+1, j), (i, j+1).
+        let u = (!lower) as i64;
+        let pts = [
+            (i.wrapping_add(u), j.wrapping_add(u)),
+            (i.wrapping_add(u), j.wrapping_add(1 - u)),
+            (i.wrapping_add(1 - u), j.wrapping_add(u)),
+        ];
+        // Three explicit calls: `[_; 3].map` went through `array::Drain` and cost a third
+        // of a sample's instructions.
+        [self.vertex(pts[0]), self.vertex(pts[1]), self.vertex(pts[2])]
+    }
+
+    /// Hashed tile and offset of the triangle-grid vertex (i, j).
+    #[inline(always)]
+    fn vertex(&self, (i, j): (i64, i64)) -> Vertex {
+        let h = hash_cell(self.seed, i, j, 0);
+        Vertex {
+            // A mask when K is a power of two (the default 8): a division costs more than
+            // the rest of the vertex. Both give h mod K.
+            tile: if self.tiles.is_power_of_two() { h[0] & (self.tiles - 1) } else { h[0] % self.tiles },
+            ox: h[1] as i64 & self.offset_mask_x,
+            oy: h[2] as i64 & self.offset_mask_y,
+        }
     }
 
     /// Level index and blend weight toward the next level for a footprint (trilinear
@@ -366,9 +379,21 @@ impl Surface for BlendSurface {
     }
 
     fn height(&self, x: f64, y: f64) -> f32 {
-        let mut buf = [0.0f32; 4];
-        self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
-        buf[0]
+        if self.channels != 1 {
+            let mut buf = [0.0f32; 4];
+            self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
+            return buf[0];
+        }
+        if !(x.is_finite() && y.is_finite()) {
+            return f32::NAN;
+        }
+        // The same arithmetic as `sample_c::<1>` at footprint 1 (level 0, no blend toward
+        // level 1), with the level fixed at compile time.
+        let (i, j, lower, w) = self.triangle(x, y);
+        let verts = self.vertices(i, j, lower);
+        let mut out = [0.0f32; 1];
+        self.eval_level::<1>(0, x, y, &verts, &w, &mut out);
+        out[0]
     }
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
