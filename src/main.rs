@@ -226,10 +226,10 @@ fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
 }
 
 fn finite(name: &str, v: f64) -> Result<f64> {
-    if v.is_finite() {
+    if v.abs() < surftile::stream::MAX_COORDINATE {
         Ok(v)
     } else {
-        Err(Error::param(name, v, "a finite number"))
+        Err(Error::param(name, v, "a finite coordinate within ±2^52 pixels"))
     }
 }
 

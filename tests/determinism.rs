@@ -5,7 +5,7 @@ mod common;
 
 use surftile::Raster;
 use surftile::stats::wasserstein1_standardised;
-use surftile::stream::{BlendSurface, Region, Surface, fill_parallel};
+use surftile::stream::{BlendSurface, MAX_COORDINATE, Region, Surface, fill_parallel};
 
 fn surface() -> BlendSurface {
     BlendSurface::new(common::demo_bank(), 42).unwrap()
@@ -108,13 +108,20 @@ fn far_coordinates_keep_the_statistics() {
     assert!(distinct > 60_000);
 }
 
-/// Non-finite coordinates give NaN, not a panic; huge ones give a finite value.
+/// Non-finite coordinates and coordinates beyond ±2^52 give NaN, not a panic; just
+/// inside the range the surface is finite, and regions reaching outside are refused.
 #[test]
-fn non_finite_coordinates_give_nan() {
+fn non_finite_and_out_of_range_coordinates_give_nan() {
     let s = surface();
     assert!(s.height(f64::NAN, 0.0).is_nan());
     assert!(s.height(0.0, f64::INFINITY).is_nan());
-    assert!(s.height(1e300, -1e300).is_finite());
+    assert!(s.height(1e300, -1e300).is_nan());
+    let mut v = [0.0f32];
+    s.sample(-MAX_COORDINATE, 0.0, &mut v);
+    assert!(v[0].is_nan());
+    let edge = MAX_COORDINATE / 2.0;
+    assert!(s.height(edge, -edge).is_finite() && s.height(-edge + 0.5, edge - 0.5).is_finite());
+    assert!(s.fill(&Region::new(MAX_COORDINATE - 2.0, 0.0, 4, 1), &mut [0.0; 4]).is_err());
     let bad = Region::new(f64::NAN, 0.0, 4, 4);
     assert!(s.fill(&bad, &mut [0.0; 16]).is_err());
     assert!(s.fill(&Region::new(0.0, 0.0, 4, 4), &mut [0.0; 15]).is_err());

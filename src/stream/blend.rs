@@ -11,7 +11,7 @@
 
 use std::ops::Range;
 
-use super::{Region, Surface};
+use super::{MAX_COORDINATE, Region, Surface};
 use crate::analysis::gauss::lut_eval;
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
@@ -26,11 +26,18 @@ const SQRT3: f64 = 1.732_050_807_568_877_2;
 /// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call.
 /// The correction is arithmetic, not a branch: for random coordinates its sign is a coin
 /// flip, and each mispredicted branch flushes the overlap between consecutive samples.
+/// Callers keep |x| below 2⁶³ (coordinates are checked against [`MAX_COORDINATE`]).
 #[inline(always)]
 fn floor_split(x: f64) -> (i64, f64) {
     let t = x as i64;
-    let i = t - ((t as f64 > x) as i64);
+    let i = t.wrapping_sub((t as f64 > x) as i64);
     (i, x - i as f64)
+}
+
+/// True when (x, y) is inside the surface's coordinate range (NaN is not).
+#[inline(always)]
+fn in_range(x: f64, y: f64) -> bool {
+    x.abs() < MAX_COORDINATE && y.abs() < MAX_COORDINATE
 }
 
 /// A surface sampled from a blend bank ([`Rule::Blend`]) with a placement seed.
@@ -228,7 +235,7 @@ impl BlendSurface {
         cache: &mut VertexCache,
         out: &mut [f32],
     ) {
-        if !(x.is_finite() && y.is_finite()) {
+        if !in_range(x, y) {
             out[..C].fill(f32::NAN);
             return;
         }
@@ -278,7 +285,7 @@ impl BlendSurface {
     }
 
     fn sample_c<const C: usize>(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
-        if !(x.is_finite() && y.is_finite()) {
+        if !in_range(x, y) {
             out[..C].fill(f32::NAN);
             return;
         }
@@ -384,7 +391,7 @@ impl Surface for BlendSurface {
             self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
             return buf[0];
         }
-        if !(x.is_finite() && y.is_finite()) {
+        if !in_range(x, y) {
             return f32::NAN;
         }
         // The same arithmetic as `sample_c::<1>` at footprint 1 (level 0, no blend toward

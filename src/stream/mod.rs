@@ -5,7 +5,8 @@
 //! - **determinism**: the value at (x, y) depends only on (bank or model, seed, x, y),
 //!   so filling a region in pieces, in any order, on any number of threads gives the
 //!   same bits;
-//! - coordinates are surface pixels; non-finite coordinates give NaN, never a panic.
+//! - coordinates are surface pixels, within ±[`MAX_COORDINATE`]; outside it (and for
+//!   NaN) samples are NaN, never a panic.
 
 mod blend;
 
@@ -14,6 +15,11 @@ use std::ops::Range;
 pub use blend::BlendSurface;
 
 use crate::error::{Error, Result};
+
+/// Largest coordinate magnitude a surface samples: 2⁵² pixels (4.5·10¹⁵). Beyond it an
+/// f64 has no fractional part left, so neighbouring pixels could not be told apart;
+/// samples there are NaN and regions are refused.
+pub const MAX_COORDINATE: f64 = 4_503_599_627_370_496.0;
 
 /// A rectangle of samples on a regular grid: pixel (col, row) of the region lies at
 /// `(x + (col0 + col)·step, y + (row0 + row)·step)`.
@@ -63,8 +69,14 @@ impl Region {
     /// Checks that the region can be filled: finite origin, positive finite step,
     /// non-zero size.
     pub fn validate(&self) -> Result<()> {
-        if !self.x.is_finite() || !self.y.is_finite() {
-            return Err(Error::param("region origin", format!("({}, {})", self.x, self.y), "finite coordinates"));
+        let far = |v: f64| !(v.abs() < MAX_COORDINATE);
+        let (x1, y1) = (self.x_at(self.width.saturating_sub(1)), self.y_at(self.height.saturating_sub(1)));
+        if far(self.x) || far(self.y) || far(x1) || far(y1) {
+            return Err(Error::param(
+                "region",
+                format!("from ({}, {}) to ({x1}, {y1})", self.x, self.y),
+                "finite coordinates within ±2^52 pixels",
+            ));
         }
         if !(self.step.is_finite() && self.step > 0.0) {
             return Err(Error::param("step", self.step, "a positive number of pixels"));
