@@ -17,7 +17,9 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("bake_rpn");
     g.sample_size(10).measurement_time(Duration::from_secs(6));
     for side in [512usize, 1024, 2048] {
-        let plane: Vec<f64> = (0..side * side).map(|i| ((i * 7919) % 1013) as f64 * 0.001).collect();
+        let plane: Vec<f64> = (0..side * side)
+            .map(|i| ((i * 7919) % 1013) as f64 * 0.001)
+            .collect();
         let planes = vec![plane.clone()];
         g.bench_function(format!("rpn_{side}"), |b| {
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
@@ -31,9 +33,17 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
-    let image = read_image_bytes(include_bytes!("../tiles/di-6.npy"), Format::Npy, "di-6", &ReadOptions::default()).unwrap();
+    let image = read_image_bytes(
+        include_bytes!("../tiles/di-6.npy"),
+        Format::Npy,
+        "di-6",
+        &ReadOptions::default(),
+    )
+    .unwrap();
     let baker = Baker::builder().seed(1).build().unwrap();
-    g.bench_function("whole_bake_di6_512_k8", |b| b.iter(|| baker.bake(black_box(&image), "di-6", &mut |_| {}).unwrap()));
+    g.bench_function("whole_bake_di6_512_k8", |b| {
+        b.iter(|| baker.bake(black_box(&image), "di-6", &mut |_| {}).unwrap())
+    });
     g.finish();
 }
 

@@ -14,20 +14,47 @@ use surftile::stream::{BlendSurface, Surface};
 const N: usize = 4096;
 
 fn bench(c: &mut Criterion) {
-    let image = read_image_bytes(include_bytes!("../tiles/di-6.npy"), Format::Npy, "di-6", &ReadOptions::default()).unwrap();
-    let bank = Baker::builder().seed(1).bank_size(std::env::var("K").map(|k| k.parse().unwrap()).unwrap_or(8)).build().unwrap().bake(&image, "di-6", &mut |_| {}).unwrap();
+    let image = read_image_bytes(
+        include_bytes!("../tiles/di-6.npy"),
+        Format::Npy,
+        "di-6",
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    let bank = Baker::builder()
+        .seed(1)
+        .bank_size(std::env::var("K").map(|k| k.parse().unwrap()).unwrap_or(8))
+        .build()
+        .unwrap()
+        .bake(&image, "di-6", &mut |_| {})
+        .unwrap();
     let surface = BlendSurface::new(&bank, 3).unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
-    let near: Vec<(f64, f64)> = (0..N).map(|_| (rng.random_range(-1000.0..1000.0), rng.random_range(-1000.0..1000.0))).collect();
+    let near: Vec<(f64, f64)> = (0..N)
+        .map(|_| {
+            (
+                rng.random_range(-1000.0..1000.0),
+                rng.random_range(-1000.0..1000.0),
+            )
+        })
+        .collect();
     let far: Vec<(f64, f64)> = near.iter().map(|&(x, y)| (x + 1e9, y - 1e9)).collect();
 
     let mut g = c.benchmark_group("sample");
     g.throughput(Throughput::Elements(N as u64));
     g.bench_function("height_near_0", |b| {
-        b.iter(|| near.iter().map(|&(x, y)| surface.height(black_box(x), black_box(y))).sum::<f32>())
+        b.iter(|| {
+            near.iter()
+                .map(|&(x, y)| surface.height(black_box(x), black_box(y)))
+                .sum::<f32>()
+        })
     });
     g.bench_function("height_at_1e9", |b| {
-        b.iter(|| far.iter().map(|&(x, y)| surface.height(black_box(x), black_box(y))).sum::<f32>())
+        b.iter(|| {
+            far.iter()
+                .map(|&(x, y)| surface.height(black_box(x), black_box(y)))
+                .sum::<f32>()
+        })
     });
     let tile = &bank.texels[0][..256 * 256];
     g.bench_function("baseline_one_bilinear_fetch", |b| {

@@ -19,8 +19,8 @@ use crate::analysis::level::level_plane;
 use crate::analysis::missing::fill_missing;
 use crate::analysis::periodic::periodic_smooth;
 use crate::analysis::resample::{DownsampleFilter, downsample};
-use crate::analysis::taper::hann_taper;
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
+use crate::analysis::taper::hann_taper;
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::{Error, Result};
 use crate::io::ImageFile;
@@ -142,18 +142,30 @@ impl BakerBuilder {
         if let Some(p) = b.patch
             && (!p.is_power_of_two() || !(8..=4096).contains(&p))
         {
-            return Err(Error::param("patch", p, "a power of two from 8 to 4096 pixels"));
+            return Err(Error::param(
+                "patch",
+                p,
+                "a power of two from 8 to 4096 pixels",
+            ));
         }
         if !(1..=256).contains(&b.bank_size) {
             return Err(Error::param("bank-size", b.bank_size, "1 to 256 tiles"));
         }
         if !(1..=64).contains(&b.downsample) {
-            return Err(Error::param("downsample", b.downsample, "an integer factor from 1 to 64"));
+            return Err(Error::param(
+                "downsample",
+                b.downsample,
+                "an integer factor from 1 to 64",
+            ));
         }
         if let Some(e) = b.triangle_edge
             && !(e.is_finite() && e >= 2.0)
         {
-            return Err(Error::param("triangle-edge", e, "a length of at least 2 pixels"));
+            return Err(Error::param(
+                "triangle-edge",
+                e,
+                "a length of at least 2 pixels",
+            ));
         }
         if let Some(s) = b.spacing_um
             && !(s.is_finite() && s > 0.0)
@@ -209,7 +221,10 @@ impl Baker {
             level_plane(&mut raster);
         }
         let raster = downsample(&raster, self.downsample, self.filter)?;
-        let spacing = self.spacing_um.or(image.spacing_um).map(|s| s * self.downsample as f64);
+        let spacing = self
+            .spacing_um
+            .or(image.spacing_um)
+            .map(|s| s * self.downsample as f64);
         if raster.width < MIN_EXEMPLAR_SIDE || raster.height < MIN_EXEMPLAR_SIDE {
             return Err(Error::TooSmall {
                 what: source.to_string(),
@@ -217,7 +232,11 @@ impl Baker {
                     "the exemplar is {}×{} pixels{}; baking needs at least {MIN_EXEMPLAR_SIDE}×{MIN_EXEMPLAR_SIDE}",
                     raster.width,
                     raster.height,
-                    if self.downsample > 1 { " after down-sampling" } else { "" }
+                    if self.downsample > 1 {
+                        " after down-sampling"
+                    } else {
+                        ""
+                    }
                 ),
             });
         }
@@ -226,7 +245,12 @@ impl Baker {
 
     /// Bakes a blend bank from `image`. `source` names it in errors and in the bank;
     /// `progress` receives one line per step.
-    pub fn bake(&self, image: &ImageFile, source: &str, progress: &mut dyn FnMut(&str)) -> Result<Bank> {
+    pub fn bake(
+        &self,
+        image: &ImageFile,
+        source: &str,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Bank> {
         let (ex, spacing_um) = self.preprocess(image, source)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         let side = |n: usize| (1usize << n.ilog2()).min(DEFAULT_MAX_PATCH);
@@ -283,12 +307,19 @@ impl Baker {
                     tile[i * c + ch] = v as f32;
                 }
             }
-            progress(&format!("tile {}/{} from crop at ({x0}, {y0})", k + 1, self.bank_size));
+            progress(&format!(
+                "tile {}/{} from crop at ({x0}, {y0})",
+                k + 1,
+                self.bank_size
+            ));
         }
 
         // Level 0: T⁻¹ maps the patches' standardised values to the exemplar quantiles.
         let (mean0, sigma0) = channel_stats(&level0, c);
-        let lut0: Vec<f32> = sorted.iter().flat_map(|s| inverse_lut(s, LUT_SIZE, LUT_Z_RANGE)).collect();
+        let lut0: Vec<f32> = sorted
+            .iter()
+            .flat_map(|s| inverse_lut(s, LUT_SIZE, LUT_Z_RANGE))
+            .collect();
         // Heights the level-0 patches stand for, to prefilter the coarser tables.
         let mut heights: Vec<f32> = level0
             .iter()
@@ -296,7 +327,11 @@ impl Baker {
             .map(|(i, &g)| {
                 let ch = i % c;
                 let z = ((g as f64 - mean0[ch]) / sigma0[ch].max(1e-30)) as f32;
-                lut_eval(&lut0[ch * LUT_SIZE..(ch + 1) * LUT_SIZE], z, LUT_Z_RANGE as f32)
+                lut_eval(
+                    &lut0[ch * LUT_SIZE..(ch + 1) * LUT_SIZE],
+                    z,
+                    LUT_Z_RANGE as f32,
+                )
             })
             .collect();
         let mut texels = vec![level0];
@@ -311,14 +346,22 @@ impl Baker {
         // (Deliot & Heitz prefilter T⁻¹ per level for the same reason).
         let (mut lw, mut lh) = (pw, ph);
         while lw / 2 >= MIN_LEVEL_SIDE && lh / 2 >= MIN_LEVEL_SIDE {
-            let prev = texels.last().map(|t| box_half(t, self.bank_size, lw, lh, c)).unwrap_or_default();
+            let prev = texels
+                .last()
+                .map(|t| box_half(t, self.bank_size, lw, lh, c))
+                .unwrap_or_default();
             heights = box_half(&heights, self.bank_size, lw, lh, c);
             lw /= 2;
             lh /= 2;
             let (mean, sigma) = channel_stats(&prev, c);
             let lut: Vec<f32> = (0..c)
                 .flat_map(|ch| {
-                    let mut s: Vec<f64> = heights.iter().skip(ch).step_by(c).map(|&v| v as f64).collect();
+                    let mut s: Vec<f64> = heights
+                        .iter()
+                        .skip(ch)
+                        .step_by(c)
+                        .map(|&v| v as f64)
+                        .collect();
                     s.sort_by(f64::total_cmp);
                     inverse_lut(&s, LUT_SIZE, LUT_Z_RANGE)
                 })
@@ -356,17 +399,32 @@ impl Baker {
             triangle_edge: edge,
             levels,
             spacing_um,
-            height_unit: if c == 1 && spacing_um.is_some() { "um".into() } else { String::new() },
+            height_unit: if c == 1 && spacing_um.is_some() {
+                "um".into()
+            } else {
+                String::new()
+            },
             seed: self.seed,
             lut_size: LUT_SIZE,
             lut_z_range: LUT_Z_RANGE,
             exemplar,
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
-                self.method, self.bank_size, self.seed, self.leveling, self.downsample, self.filter, self.fill_missing, self.taper
+                self.method,
+                self.bank_size,
+                self.seed,
+                self.leveling,
+                self.downsample,
+                self.filter,
+                self.fill_missing,
+                self.taper
             ),
         };
-        let bank = Bank { header, texels, luts };
+        let bank = Bank {
+            header,
+            texels,
+            luts,
+        };
         bank.validate(source)?;
         Ok(bank)
     }
@@ -402,12 +460,14 @@ fn box_half(data: &[f32], tiles: usize, w: usize, h: usize, c: usize) -> Vec<f32
             for x in 0..hw {
                 for ch in 0..c {
                     let at = |xx: usize, yy: usize| src[(yy * w + xx) * c + ch];
-                    dst[(y * hw + x) * c + ch] =
-                        0.25 * (at(2 * x, 2 * y) + at(2 * x + 1, 2 * y) + at(2 * x, 2 * y + 1) + at(2 * x + 1, 2 * y + 1));
+                    dst[(y * hw + x) * c + ch] = 0.25
+                        * (at(2 * x, 2 * y)
+                            + at(2 * x + 1, 2 * y)
+                            + at(2 * x, 2 * y + 1)
+                            + at(2 * x + 1, 2 * y + 1));
                 }
             }
         }
     }
     out
 }
-

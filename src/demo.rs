@@ -47,13 +47,22 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     };
 
     let t = Instant::now();
-    let mut image = read_image_bytes(EXEMPLAR, Format::Npy, "tiles/di-6.npy", &ReadOptions::default())?;
+    let mut image = read_image_bytes(
+        EXEMPLAR,
+        Format::Npy,
+        "tiles/di-6.npy",
+        &ReadOptions::default(),
+    )?;
     image.spacing_um = Some(EXEMPLAR_SPACING_UM);
     let baker = Baker::builder().seed(1).build()?;
     let bank = baker.bake(&image, "tiles/di-6.npy", &mut |_| {})?;
     let bank_path = dir.join("di-6.bank");
     bank.write(&bank_path)?;
-    step("bake: RPN bank of 8 tiles from the 512×512 AFM map di-6", bank_path, t);
+    step(
+        "bake: RPN bank of 8 tiles from the 512×512 AFM map di-6",
+        bank_path,
+        t,
+    );
 
     let t = Instant::now();
     let (mut exemplar, spacing) = baker.preprocess(&image, "di-6")?;
@@ -64,9 +73,21 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
 
     let surface = BlendSurface::new(&bank, 0)?;
     let renders = [
-        ("height, 1024×1024 at the origin (16-bit PNG)", "height-origin.png", Region::new(0.0, 0.0, 1024, 1024)),
-        ("height, 1024×1024 a billion pixels away (16-bit PNG)", "height-far.png", Region::new(1e9, -1e9, 1024, 1024)),
-        ("height, 1024×1024 zoomed out ×8 from mip levels (16-bit PNG)", "height-zoom8.png", Region::new(-4096.0, -4096.0, 1024, 1024).with_step(8.0)),
+        (
+            "height, 1024×1024 at the origin (16-bit PNG)",
+            "height-origin.png",
+            Region::new(0.0, 0.0, 1024, 1024),
+        ),
+        (
+            "height, 1024×1024 a billion pixels away (16-bit PNG)",
+            "height-far.png",
+            Region::new(1e9, -1e9, 1024, 1024),
+        ),
+        (
+            "height, 1024×1024 zoomed out ×8 from mip levels (16-bit PNG)",
+            "height-zoom8.png",
+            Region::new(-4096.0, -4096.0, 1024, 1024).with_step(8.0),
+        ),
     ];
     for (what, name, region) in renders {
         let t = Instant::now();
@@ -77,15 +98,29 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
 
     let t = Instant::now();
     let path = dir.join("shaded.png");
-    render_to_file(&surface, &Region::new(0.0, 0.0, 1024, 1024), &path, true, spacing, &mut |_| {})?;
-    step("shaded view of the origin render (Phong, 8-bit PNG)", path, t);
+    render_to_file(
+        &surface,
+        &Region::new(0.0, 0.0, 1024, 1024),
+        &path,
+        true,
+        spacing,
+        &mut |_| {},
+    )?;
+    step(
+        "shaded view of the origin render (Phong, 8-bit PNG)",
+        path,
+        t,
+    );
 
     let t = Instant::now();
     let render = render_region(&surface, &Region::new(0.0, 0.0, 1024, 1024), &mut |_| {})?;
     let figures = compare(&exemplar, &render, Some(bank.header.triangle_edge as usize));
-    let json = serde_json::to_string_pretty(&figures).map_err(|e| Error::decode("stats", e.to_string()))?;
+    let json = serde_json::to_string_pretty(&figures)
+        .map_err(|e| Error::decode("stats", e.to_string()))?;
     let path = dir.join("stats.json");
-    write_atomically(&path, |w| std::io::Write::write_all(w, json.as_bytes()).map_err(|e| Error::io(&path, e)))?;
+    write_atomically(&path, |w| {
+        std::io::Write::write_all(w, json.as_bytes()).map_err(|e| Error::io(&path, e))
+    })?;
     step("quality figures, exemplar vs render (JSON)", path, t);
     Ok(steps)
 }

@@ -68,7 +68,11 @@ impl Fft2 {
     }
 
     fn process(&mut self, data: &mut [Complex64], rows: &dyn Fft<f64>, cols: &dyn Fft<f64>) {
-        assert_eq!(data.len(), self.width * self.height, "Fft2: wrong buffer size");
+        assert_eq!(
+            data.len(),
+            self.width * self.height,
+            "Fft2: wrong buffer size"
+        );
         rows.process_with_scratch(data, &mut self.scratch);
         transpose::transpose(data, &mut self.transposed, self.width, self.height);
         cols.process_with_scratch(&mut self.transposed, &mut self.scratch);

@@ -89,6 +89,9 @@ mod tests {
             assert!((p - 0.5).abs() < 0.02, "bit {b} set with frequency {p}");
         }
         let mean_flips = flips as f64 / n as f64;
-        assert!((mean_flips - 16.0).abs() < 0.5, "mean flipped bits {mean_flips}");
+        assert!(
+            (mean_flips - 16.0).abs() < 0.5,
+            "mean flipped bits {mean_flips}"
+        );
     }
 }

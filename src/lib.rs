@@ -1,4 +1,29 @@
 //! surftile: infinite, deterministic surfaces from a small exemplar.
+//!
+//! Bake a measured height map once into a bank of periodic Gaussian tiles, then sample
+//! the surface anywhere, in constant time, identically however a region is split:
+//!
+//! ```
+//! use surftile::bake::Baker;
+//! use surftile::io::{ReadOptions, read_image};
+//! use surftile::stream::{BlendSurface, Region, Surface};
+//!
+//! let exemplar = read_image("tiles/di-6.npy".as_ref(), &ReadOptions::default())?;
+//! let bank = Baker::builder().seed(1).build()?.bake(&exemplar, "di-6", &mut |_| {})?;
+//! let surface = BlendSurface::new(&bank, 7)?; // 7: placement seed
+//! let h = surface.height(1e9 + 0.5, -42.25); // a billion pixels away, same cost
+//! let mut tile = vec![0.0f32; 256 * 256];
+//! surface.fill(&Region::new(-128.0, 0.0, 256, 256), &mut tile)?;
+//! assert!(h.is_finite() && tile.iter().all(|v| v.is_finite()));
+//! # Ok::<(), surftile::Error>(())
+//! ```
+//!
+//! Modules: [`io`] reads exemplars and writes outputs; [`analysis`] holds the offline
+//! stages (levelling, missing points, periodic + smooth, Gaussianisation, RPN/ADSN);
+//! [`bake`] runs them into a [`bank::Bank`]; [`stream`] is the runtime ([`stream::Surface`],
+//! [`stream::Region`], the blend rule); [`stats`] computes the quality figures; [`shade`]
+//! and [`render`] make pictures; [`demo`] is `surftile demo`.
+
 pub mod analysis;
 pub mod bake;
 pub mod bank;
@@ -12,5 +37,6 @@ pub mod render;
 pub mod shade;
 pub mod stats;
 pub mod stream;
+
 pub use error::{Error, Result};
 pub use raster::Raster;

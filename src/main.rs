@@ -229,7 +229,11 @@ fn finite(name: &str, v: f64) -> Result<f64> {
     if v.abs() < surftile::stream::MAX_COORDINATE {
         Ok(v)
     } else {
-        Err(Error::param(name, v, "a finite coordinate within ±2^52 pixels"))
+        Err(Error::param(
+            name,
+            v,
+            "a finite coordinate within ±2^52 pixels",
+        ))
     }
 }
 
@@ -240,7 +244,14 @@ fn check_output(path: &Path) -> Result<()> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(Error::param("out", path.display(), format!("a file in an existing folder ({} does not exist)", dir.display())));
+        return Err(Error::param(
+            "out",
+            path.display(),
+            format!(
+                "a file in an existing folder ({} does not exist)",
+                dir.display()
+            ),
+        ));
     }
     Ok(())
 }
@@ -297,7 +308,11 @@ fn run(command: Command) -> Result<()> {
             let source = exemplar.display().to_string();
             let bank = baker.bake(&image, &source, &mut |line| eprintln!("bake: {line}"))?;
             bank.write(&out)?;
-            eprintln!("bake: wrote {} in {:.2} s", out.display(), start.elapsed().as_secs_f64());
+            eprintln!(
+                "bake: wrote {} in {:.2} s",
+                out.display(),
+                start.elapsed().as_secs_f64()
+            );
             Ok(())
         }
         Command::Render {
@@ -311,13 +326,25 @@ fn run(command: Command) -> Result<()> {
             out,
             shade,
         } => {
-            let region = Region::new(finite("x", x)?, finite("y", y)?, checked_size("w", w)?, checked_size("h", h)?)
-                .with_step(step);
+            let region = Region::new(
+                finite("x", x)?,
+                finite("y", y)?,
+                checked_size("w", w)?,
+                checked_size("h", h)?,
+            )
+            .with_step(step);
             region.validate()?;
             check_output(&out)?;
             let (bank, surface) = load_surface(&bank, seed)?;
             let start = Instant::now();
-            render_to_file(&surface, &region, &out, shade, bank.header.spacing_um, &mut progress_reporter("render"))?;
+            render_to_file(
+                &surface,
+                &region,
+                &out,
+                shade,
+                bank.header.spacing_um,
+                &mut progress_reporter("render"),
+            )?;
             eprintln!(
                 "render: wrote {} ({}×{} samples) in {:.2} s",
                 out.display(),
@@ -344,14 +371,27 @@ fn run(command: Command) -> Result<()> {
             } else {
                 let h = &b.header;
                 println!("bank        {}", bank.display());
-                println!("rule        {} (triangle edge {} px)", h.rule, h.triangle_edge);
+                println!(
+                    "rule        {} (triangle edge {} px)",
+                    h.rule, h.triangle_edge
+                );
                 println!("method      {}", h.method);
-                println!("tiles       {} of {}×{} px, {} channel(s), {} mip levels", h.tiles, h.tile_size[0], h.tile_size[1], h.channels, h.levels.len());
+                println!(
+                    "tiles       {} of {}×{} px, {} channel(s), {} mip levels",
+                    h.tiles,
+                    h.tile_size[0],
+                    h.tile_size[1],
+                    h.channels,
+                    h.levels.len()
+                );
                 match h.spacing_um {
                     Some(s) => println!("spacing     {s} µm per pixel"),
                     None => println!("spacing     unknown"),
                 }
-                println!("exemplar    {} ({}×{})", h.exemplar.source, h.exemplar.width, h.exemplar.height);
+                println!(
+                    "exemplar    {} ({}×{})",
+                    h.exemplar.source, h.exemplar.width, h.exemplar.height
+                );
                 println!("bake        {}", h.bake);
             }
             Ok(())
@@ -371,7 +411,11 @@ fn run(command: Command) -> Result<()> {
                 let missing = r.count_nan();
                 if missing > 0 {
                     if !fill {
-                        return Err(Error::MissingData { what, count: missing, total: r.data.len() });
+                        return Err(Error::MissingData {
+                            what,
+                            count: missing,
+                            total: r.data.len(),
+                        });
                     }
                     fill_missing(&mut r, &what)?;
                 }
@@ -385,14 +429,23 @@ fn run(command: Command) -> Result<()> {
             }
             let (ra, rb) = (load(&a)?, load(&b)?);
             let figures = compare(&ra, &rb, cell);
-            println!("{}", serde_json::to_string_pretty(&figures).map_err(|e| Error::decode("stats", e.to_string()))?);
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&figures)
+                    .map_err(|e| Error::decode("stats", e.to_string()))?
+            );
             Ok(())
         }
         Command::Demo { out_dir } => {
             let start = Instant::now();
             println!("surftile demo: writing into {}/", out_dir.display());
             run_demo(&out_dir, &mut |s| {
-                println!("  {:<62} {:>7.3} s  {}", s.what, s.seconds, s.path.display());
+                println!(
+                    "  {:<62} {:>7.3} s  {}",
+                    s.what,
+                    s.seconds,
+                    s.path.display()
+                );
             })?;
             println!("done in {:.2} s", start.elapsed().as_secs_f64());
             Ok(())

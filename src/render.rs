@@ -67,7 +67,11 @@ pub fn render_to_file(
     let format = Format::from_path(out)?;
     if shaded {
         if format != Format::Png {
-            return Err(Error::param("out", out.display(), "a .png file with --shade (the shading is an 8-bit image)"));
+            return Err(Error::param(
+                "out",
+                out.display(),
+                "a .png file with --shade (the shading is an 8-bit image)",
+            ));
         }
         // One sample of margin on every side for the central differences.
         let grown = Region {

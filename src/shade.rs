@@ -44,7 +44,10 @@ impl Default for ShadeOptions {
 /// (`(w + 2) × (h + 2)`, channel 0), returning `w × h` 8-bit intensities. Slopes are
 /// per pixel (height units per pixel) times the exaggeration.
 pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
-    let (w, h) = (heights.width.saturating_sub(2), heights.height.saturating_sub(2));
+    let (w, h) = (
+        heights.width.saturating_sub(2),
+        heights.height.saturating_sub(2),
+    );
     let grad = |x: usize, y: usize| {
         let gx = 0.5 * (heights.get(x + 2, y + 1, 0) - heights.get(x, y + 1, 0));
         let gy = 0.5 * (heights.get(x + 1, y + 2, 0) - heights.get(x + 1, y, 0));
@@ -59,7 +62,11 @@ pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
             }
         }
         let rms = (sum / (w * h).max(1) as f64).sqrt() as f32;
-        if rms > 0.0 && rms.is_finite() { 0.5 / rms } else { 1.0 }
+        if rms > 0.0 && rms.is_finite() {
+            0.5 / rms
+        } else {
+            1.0
+        }
     });
     let l = options.light.normalize();
     let v = options.view.normalize();
@@ -88,7 +95,13 @@ mod tests {
         let (w, h) = (22, 6);
         let data: Vec<f32> = (0..w * h).map(|i| -((i % w) as f32 - 10.5).abs()).collect();
         let r = Raster::from_vec(w, h, 1, data).unwrap();
-        let img = shade(&r, &ShadeOptions { exaggeration: Some(1.0), ..Default::default() });
+        let img = shade(
+            &r,
+            &ShadeOptions {
+                exaggeration: Some(1.0),
+                ..Default::default()
+            },
+        );
         let (lit, dark) = (img[2 * 20 + 3], img[2 * 20 + 16]);
         assert!(lit > dark + 50, "lit {lit} dark {dark}");
         // A flat field is ambient + diffuse·cos 45° + specular at the half vector.

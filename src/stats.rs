@@ -83,7 +83,9 @@ pub fn height_stats(r: &Raster) -> HeightStats {
     let sa = v.iter().map(|&x| (x as f64 - mean).abs()).sum::<f64>() / n;
     let m3 = v.iter().map(|&x| (x as f64 - mean).powi(3)).sum::<f64>() / n;
     let m4 = v.iter().map(|&x| (x as f64 - mean).powi(4)).sum::<f64>() / n;
-    let (lo, hi) = v.iter().fold((f32::MAX, f32::MIN), |(l, u), &x| (l.min(x), u.max(x)));
+    let (lo, hi) = v
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, u), &x| (l.min(x), u.max(x)));
     let acf = Acf::new(r);
     let (sal, longest) = acf.decay_lengths();
     let repetition = acf.max_beyond(longest);
@@ -244,7 +246,11 @@ pub fn wasserstein1_sorted(a: &[f64], b: &[f64]) -> f64 {
     let mut prev = a[0].min(b[0]);
     let mut acc = 0.0;
     while i < a.len() || j < b.len() {
-        let next = a.get(i).copied().unwrap_or(f64::INFINITY).min(b.get(j).copied().unwrap_or(f64::INFINITY));
+        let next = a
+            .get(i)
+            .copied()
+            .unwrap_or(f64::INFINITY)
+            .min(b.get(j).copied().unwrap_or(f64::INFINITY));
         acc += (i as f64 / na - j as f64 / nb).abs() * (next - prev);
         prev = next;
         while i < a.len() && a[i] == next {
@@ -269,7 +275,13 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
     let bins = n / 2 + 1;
     let mut power = vec![0.0; bins];
     let mut count = vec![0usize; bins];
-    let bin_of = |k: usize| if k <= n / 2 { k as f64 } else { k as f64 - n as f64 };
+    let bin_of = |k: usize| {
+        if k <= n / 2 {
+            k as f64
+        } else {
+            k as f64 - n as f64
+        }
+    };
     for ky in 0..n {
         for kx in 0..n {
             let rad = bin_of(kx).hypot(bin_of(ky));
@@ -285,7 +297,9 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
                 break 'outer;
             }
             windows += 1;
-            let mut win: Vec<f64> = (0..n * n).map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64).collect();
+            let mut win: Vec<f64> = (0..n * n)
+                .map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64)
+                .collect();
             let m = win.iter().sum::<f64>() / (n * n) as f64;
             for (i, v) in win.iter_mut().enumerate() {
                 *v = (*v - m) * hann[i % n] * hann[i / n];
@@ -333,21 +347,33 @@ pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
             (acc_a, acc_b, acc_n) = (0.0, 0.0, 0);
         }
     }
-    if bins == 0 { f64::NAN } else { (sq / bins as f64).sqrt() }
+    if bins == 0 {
+        f64::NAN
+    } else {
+        (sq / bins as f64).sqrt()
+    }
 }
 
 /// Seam score on square cells of `cell` px: mean squared gradient across cell borders
 /// divided by that inside cells (1.0 = seams invisible).
 pub fn seam_score(r: &Raster, cell: usize) -> f64 {
     let cell = cell.max(1) as i64;
-    seam_score_by(r, |x, y| ((x as i64).div_euclid(cell), (y as i64).div_euclid(cell), false))
+    seam_score_by(r, |x, y| {
+        (
+            (x as i64).div_euclid(cell),
+            (y as i64).div_euclid(cell),
+            false,
+        )
+    })
 }
 
 /// Seam score for any partition of the pixels into cells: `cell_of(x, y)` names the
 /// cell of pixel (x, y); pixel pairs in different cells are border pairs.
 pub fn seam_score_by(r: &Raster, cell_of: impl Fn(usize, usize) -> (i64, i64, bool)) -> f64 {
     let (mut border, mut nb, mut inside, mut ni) = (0.0, 0usize, 0.0, 0usize);
-    let ids: Vec<(i64, i64, bool)> = (0..r.pixels()).map(|i| cell_of(i % r.width, i / r.width)).collect();
+    let ids: Vec<(i64, i64, bool)> = (0..r.pixels())
+        .map(|i| cell_of(i % r.width, i / r.width))
+        .collect();
     for y in 0..r.height {
         for x in 0..r.width {
             let here = r.get(x, y, 0) as f64;
@@ -378,7 +404,13 @@ mod tests {
     use super::*;
 
     fn raster(w: usize, h: usize, f: impl Fn(usize, usize) -> f64) -> Raster {
-        Raster::from_vec(w, h, 1, (0..w * h).map(|i| f(i % w, i / w) as f32).collect()).unwrap()
+        Raster::from_vec(
+            w,
+            h,
+            1,
+            (0..w * h).map(|i| f(i % w, i / w) as f32).collect(),
+        )
+        .unwrap()
     }
 
     #[test]
@@ -405,18 +437,26 @@ mod tests {
     #[test]
     fn sal_and_repetition_of_a_sinusoid() {
         let period = 16.0;
-        let r = raster(128, 128, |x, _| (2.0 * std::f64::consts::PI * x as f64 / period).sin());
+        let r = raster(128, 128, |x, _| {
+            (2.0 * std::f64::consts::PI * x as f64 / period).sin()
+        });
         let s = height_stats(&r);
         let expected = period * 0.2f64.acos() / (2.0 * std::f64::consts::PI);
         // The biased estimator shrinks the ACF by (1 − |dx|/w): allow 10%.
-        assert!((s.sal - expected).abs() < 0.1 * expected, "Sal {} vs {expected}", s.sal);
+        assert!(
+            (s.sal - expected).abs() < 0.1 * expected,
+            "Sal {} vs {expected}",
+            s.sal
+        );
         assert!(s.str < 0.2, "Str {}", s.str);
         assert!(s.repetition > 0.95, "repetition {}", s.repetition);
     }
 
     #[test]
     fn psd_error_is_zero_for_the_same_map_and_grows_with_a_gain() {
-        let r = raster(64, 64, |x, y| ((x * 7 + y * 13) % 17) as f64 + (x as f64 * 0.3).sin());
+        let r = raster(64, 64, |x, y| {
+            ((x * 7 + y * 13) % 17) as f64 + (x as f64 * 0.3).sin()
+        });
         assert!(psd_error(&r, &r) < 1e-12);
         let mut louder = r.clone();
         for v in &mut louder.data {
@@ -428,9 +468,13 @@ mod tests {
 
     #[test]
     fn seam_score_sees_a_step_at_cell_borders() {
-        let smooth = raster(64, 64, |x, y| (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos());
+        let smooth = raster(64, 64, |x, y| {
+            (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos()
+        });
         assert!((seam_score(&smooth, 16) - 1.0).abs() < 0.3);
-        let seamed = raster(64, 64, |x, y| (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos() + ((x / 16) % 2) as f64 * 3.0);
+        let seamed = raster(64, 64, |x, y| {
+            (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos() + ((x / 16) % 2) as f64 * 3.0
+        });
         assert!(seam_score(&seamed, 16) > 5.0);
     }
 }

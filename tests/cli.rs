@@ -37,7 +37,21 @@ fn exemplar() -> String {
 
 /// Bakes the bundled exemplar into `dir/good.bank` through the CLI.
 fn bake_good(dir: &Path) -> PathBuf {
-    let r = surftile(dir, &["bake", &exemplar(), "--method", "rpn", "--out", "good.bank", "--seed", "3", "--bank-size", "4"]);
+    let r = surftile(
+        dir,
+        &[
+            "bake",
+            &exemplar(),
+            "--method",
+            "rpn",
+            "--out",
+            "good.bank",
+            "--seed",
+            "3",
+            "--bank-size",
+            "4",
+        ],
+    );
     assert_eq!(r.code, 0, "bake failed: {}", r.stderr);
     dir.join("good.bank")
 }
@@ -50,7 +64,9 @@ fn assert_clean_failure(dir: &Path, r: &Run, expect_in_message: &str, output: &s
     assert_eq!(lines.len(), 1, "expected one error line, got: {:?}", lines);
     assert!(lines[0].starts_with("error: "), "{}", lines[0]);
     assert!(
-        lines[0].to_lowercase().contains(&expect_in_message.to_lowercase()),
+        lines[0]
+            .to_lowercase()
+            .contains(&expect_in_message.to_lowercase()),
         "message {:?} lacks {expect_in_message:?}",
         lines[0]
     );
@@ -69,7 +85,13 @@ fn truncated_bank_is_refused() {
     let good = bake_good(dir.path());
     let bytes = std::fs::read(&good).unwrap();
     std::fs::write(dir.path().join("cut.bank"), &bytes[..bytes.len() / 2]).unwrap();
-    let r = surftile(dir.path(), &["render", "cut.bank", "--x", "0", "--y", "0", "--w", "16", "--h", "16", "--out", "o.png"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render", "cut.bank", "--x", "0", "--y", "0", "--w", "16", "--h", "16", "--out",
+            "o.png",
+        ],
+    );
     assert_clean_failure(dir.path(), &r, "bank cut.bank", "o.png");
 }
 
@@ -83,7 +105,23 @@ fn bank_with_one_flipped_byte_is_refused() {
     std::fs::write(dir.path().join("flip.bank"), &bytes).unwrap();
     let r = surftile(dir.path(), &["sample", "flip.bank", "1", "2"]);
     assert_clean_failure(dir.path(), &r, "checksum", "none");
-    let r = surftile(dir.path(), &["render", "flip.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--out", "o.npy"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "flip.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "8",
+            "--h",
+            "8",
+            "--out",
+            "o.npy",
+        ],
+    );
     assert_clean_failure(dir.path(), &r, "checksum", "o.npy");
 }
 
@@ -111,7 +149,9 @@ fn one_pixel_image_is_refused() {
 #[test]
 fn nan_npy_without_fill_missing_is_refused_and_filled_with_it() {
     let dir = tempfile::tempdir().unwrap();
-    let mut data: Vec<f32> = (0..64 * 64).map(|i| ((i * 7919) % 101) as f32 * 0.01).collect();
+    let mut data: Vec<f32> = (0..64 * 64)
+        .map(|i| ((i * 7919) % 101) as f32 * 0.01)
+        .collect();
     data[100] = f32::NAN;
     data[2000] = f32::NAN;
     // write_heights refuses NaN, so write the .npy by hand: header then f32 data.
@@ -126,8 +166,16 @@ fn nan_npy_without_fill_missing_is_refused_and_filled_with_it() {
     }
     std::fs::write(dir.path().join("holes.npy"), &bytes).unwrap();
     let r = surftile(dir.path(), &["bake", "holes.npy", "--out", "b.bank"]);
-    assert_clean_failure(dir.path(), &r, "2 of 4096 height points are missing", "b.bank");
-    let r = surftile(dir.path(), &["bake", "holes.npy", "--out", "b.bank", "--fill-missing"]);
+    assert_clean_failure(
+        dir.path(),
+        &r,
+        "2 of 4096 height points are missing",
+        "b.bank",
+    );
+    let r = surftile(
+        dir.path(),
+        &["bake", "holes.npy", "--out", "b.bank", "--fill-missing"],
+    );
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(dir.path().join("b.bank").exists());
 }
@@ -136,16 +184,67 @@ fn nan_npy_without_fill_missing_is_refused_and_filled_with_it() {
 fn zero_and_negative_sizes_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     bake_good(dir.path());
-    for (flag, value, msg) in [("--w", "0", "invalid w = 0"), ("--w", "-5", "invalid w = -5"), ("--h", "-1", "invalid h = -1")] {
-        let mut args = vec!["render", "good.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--out", "o.png"];
+    for (flag, value, msg) in [
+        ("--w", "0", "invalid w = 0"),
+        ("--w", "-5", "invalid w = -5"),
+        ("--h", "-1", "invalid h = -1"),
+    ] {
+        let mut args = vec![
+            "render",
+            "good.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "8",
+            "--h",
+            "8",
+            "--out",
+            "o.png",
+        ];
         let at = args.iter().position(|a| *a == flag).unwrap();
         args[at + 1] = value;
         let r = surftile(dir.path(), &args);
         assert_clean_failure(dir.path(), &r, msg, "o.png");
     }
-    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--step", "-2", "--out", "o.png"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "good.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "8",
+            "--h",
+            "8",
+            "--step",
+            "-2",
+            "--out",
+            "o.png",
+        ],
+    );
     assert_clean_failure(dir.path(), &r, "invalid step", "o.png");
-    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "100000", "--h", "100000", "--out", "o.png"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "good.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "100000",
+            "--h",
+            "100000",
+            "--out",
+            "o.png",
+        ],
+    );
     assert_clean_failure(dir.path(), &r, "too large", "o.png");
     let r = surftile(dir.path(), &["sample", "good.bank", "NaN", "0"]);
     assert_clean_failure(dir.path(), &r, "invalid x", "none");
@@ -154,7 +253,10 @@ fn zero_and_negative_sizes_are_refused() {
 #[test]
 fn unknown_method_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let r = surftile(dir.path(), &["bake", &exemplar(), "--method", "magic", "--out", "b.bank"]);
+    let r = surftile(
+        dir.path(),
+        &["bake", &exemplar(), "--method", "magic", "--out", "b.bank"],
+    );
     assert_clean_failure(dir.path(), &r, "expected one of: rpn, adsn", "b.bank");
 }
 
@@ -163,7 +265,23 @@ fn missing_file_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let r = surftile(dir.path(), &["bake", "nowhere.png", "--out", "b.bank"]);
     assert_clean_failure(dir.path(), &r, "nowhere.png", "b.bank");
-    let r = surftile(dir.path(), &["render", "nowhere.bank", "--x", "0", "--y", "0", "--w", "8", "--h", "8", "--out", "o.png"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "nowhere.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "8",
+            "--h",
+            "8",
+            "--out",
+            "o.png",
+        ],
+    );
     assert_clean_failure(dir.path(), &r, "nowhere.bank", "o.png");
 }
 
@@ -184,7 +302,10 @@ fn bake_info_render_sample_and_stats_work_together() {
     assert!(info["spacing_um"].is_null(), "a bare .npy has no spacing");
 
     // sample prints what the library computes.
-    let r = surftile(dir.path(), &["sample", "good.bank", "-1234.5", "99.25", "--seed", "9"]);
+    let r = surftile(
+        dir.path(),
+        &["sample", "good.bank", "-1234.5", "99.25", "--seed", "9"],
+    );
     assert_eq!(r.code, 0, "{}", r.stderr);
     let printed: f32 = r.stdout.trim().parse().unwrap();
     let bank = Bank::read(&bank_path).unwrap();
@@ -193,16 +314,68 @@ fn bake_info_render_sample_and_stats_work_together() {
 
     // render to each format; .npy holds the library's samples exactly.
     for out in ["r.png", "r.tiff", "r.npy"] {
-        let r = surftile(dir.path(), &["render", "good.bank", "--x", "-10", "--y", "5", "--w", "64", "--h", "48", "--out", out]);
+        let r = surftile(
+            dir.path(),
+            &[
+                "render",
+                "good.bank",
+                "--x",
+                "-10",
+                "--y",
+                "5",
+                "--w",
+                "64",
+                "--h",
+                "48",
+                "--out",
+                out,
+            ],
+        );
         assert_eq!(r.code, 0, "{out}: {}", r.stderr);
     }
-    let npy = surftile::io::read_image(&dir.path().join("r.npy"), &Default::default()).unwrap().raster;
+    let npy = surftile::io::read_image(&dir.path().join("r.npy"), &Default::default())
+        .unwrap()
+        .raster;
     assert_eq!((npy.width, npy.height), (64, 48));
     let s = BlendSurface::new(&bank, 0).unwrap();
     assert_eq!(npy.get(3, 2, 0), s.height(-7.0, 7.0));
-    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "32", "--h", "32", "--shade", "--out", "s.png"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "good.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "32",
+            "--h",
+            "32",
+            "--shade",
+            "--out",
+            "s.png",
+        ],
+    );
     assert_eq!(r.code, 0, "{}", r.stderr);
-    let r = surftile(dir.path(), &["render", "good.bank", "--x", "0", "--y", "0", "--w", "32", "--h", "32", "--shade", "--out", "s.npy"]);
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "good.bank",
+            "--x",
+            "0",
+            "--y",
+            "0",
+            "--w",
+            "32",
+            "--h",
+            "32",
+            "--shade",
+            "--out",
+            "s.npy",
+        ],
+    );
     assert_clean_failure(dir.path(), &r, "with --shade", "s.npy");
 
     let r = surftile(dir.path(), &["stats", &exemplar(), "r.npy", "--cell", "16"]);
@@ -219,12 +392,25 @@ fn demo_writes_the_gallery() {
     let dir = tempfile::tempdir().unwrap();
     let r = surftile(dir.path(), &["demo"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
-    for f in ["di-6.bank", "exemplar.png", "height-origin.png", "height-far.png", "height-zoom8.png", "shaded.png", "stats.json"] {
+    for f in [
+        "di-6.bank",
+        "exemplar.png",
+        "height-origin.png",
+        "height-far.png",
+        "height-zoom8.png",
+        "shaded.png",
+        "stats.json",
+    ] {
         let p = dir.path().join("surftile-demo").join(f);
-        assert!(p.metadata().map(|m| m.len() > 0).unwrap_or(false), "{f} missing");
+        assert!(
+            p.metadata().map(|m| m.len() > 0).unwrap_or(false),
+            "{f} missing"
+        );
         assert!(r.stdout.contains(f), "demo output does not mention {f}");
     }
-    let stats: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("surftile-demo/stats.json")).unwrap()).unwrap();
+    let stats: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("surftile-demo/stats.json")).unwrap(),
+    )
+    .unwrap();
     assert!(stats["w1"].as_f64().unwrap() < 0.05, "{stats}");
 }

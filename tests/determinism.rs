@@ -35,8 +35,14 @@ fn quadrants_in_reverse_order_match_the_whole_on_1_and_2_threads() {
                     .copy_from_slice(&part[row * hw..(row + 1) * hw]);
             }
         }
-        let same = whole.iter().zip(&assembled).all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(same, "quadrants on {threads} thread(s) differ from the whole");
+        let same = whole
+            .iter()
+            .zip(&assembled)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(
+            same,
+            "quadrants on {threads} thread(s) differ from the whole"
+        );
     }
 }
 
@@ -46,7 +52,13 @@ fn quadrants_in_reverse_order_match_the_whole_on_1_and_2_threads() {
 #[test]
 fn fill_matches_sample_per_pixel() {
     let s = surface();
-    for (x, y, step) in [(-37.25, -12.5, 1.0), (3.0, 5.0, 1.0), (1e9 + 0.5, -2e9, 1.0), (-500.0, 20.0, 4.0), (7.0, 7.0, 3.0)] {
+    for (x, y, step) in [
+        (-37.25, -12.5, 1.0),
+        (3.0, 5.0, 1.0),
+        (1e9 + 0.5, -2e9, 1.0),
+        (-500.0, 20.0, 4.0),
+        (7.0, 7.0, 3.0),
+    ] {
         let region = Region::new(x, y, 67, 41).with_step(step);
         let mut out = vec![0.0f32; region.len()];
         s.fill(&region, &mut out).unwrap();
@@ -54,7 +66,11 @@ fn fill_matches_sample_per_pixel() {
             for col in 0..region.width {
                 let mut v = [0.0f32];
                 s.sample_footprint(region.x_at(col), region.y_at(row), step, &mut v);
-                assert_eq!(v[0].to_bits(), out[row * region.width + col].to_bits(), "({x}, {y}) step {step} at ({col}, {row})");
+                assert_eq!(
+                    v[0].to_bits(),
+                    out[row * region.width + col].to_bits(),
+                    "({x}, {y}) step {step} at ({col}, {row})"
+                );
             }
         }
     }
@@ -73,7 +89,10 @@ fn sub_regions_are_exact_for_any_step() {
     s.fill(&sub, &mut b).unwrap();
     for row in 0..30 {
         for col in 0..40 {
-            assert_eq!(a[(17 + row) * 90 + 31 + col].to_bits(), b[row * 40 + col].to_bits());
+            assert_eq!(
+                a[(17 + row) * 90 + 31 + col].to_bits(),
+                b[row * 40 + col].to_bits()
+            );
         }
     }
 }
@@ -82,11 +101,26 @@ fn sub_regions_are_exact_for_any_step() {
 #[test]
 fn seed_changes_the_surface_and_only_the_seed() {
     let bank = common::demo_bank();
-    let (a, b, c) = (BlendSurface::new(bank, 1).unwrap(), BlendSurface::new(bank, 1).unwrap(), BlendSurface::new(bank, 2).unwrap());
-    let pts: Vec<(f64, f64)> = (0..200).map(|i| (i as f64 * 13.7 - 900.0, i as f64 * -7.3)).collect();
-    assert!(pts.iter().all(|&(x, y)| a.height(x, y).to_bits() == b.height(x, y).to_bits()));
-    let differ = pts.iter().filter(|&&(x, y)| a.height(x, y) != c.height(x, y)).count();
-    assert!(differ > 190, "only {differ} of 200 samples differ between seeds");
+    let (a, b, c) = (
+        BlendSurface::new(bank, 1).unwrap(),
+        BlendSurface::new(bank, 1).unwrap(),
+        BlendSurface::new(bank, 2).unwrap(),
+    );
+    let pts: Vec<(f64, f64)> = (0..200)
+        .map(|i| (i as f64 * 13.7 - 900.0, i as f64 * -7.3))
+        .collect();
+    assert!(
+        pts.iter()
+            .all(|&(x, y)| a.height(x, y).to_bits() == b.height(x, y).to_bits())
+    );
+    let differ = pts
+        .iter()
+        .filter(|&&(x, y)| a.height(x, y) != c.height(x, y))
+        .count();
+    assert!(
+        differ > 190,
+        "only {differ} of 200 samples differ between seeds"
+    );
 }
 
 /// Far from the origin the surface has the same statistics as near it (no precision
@@ -121,10 +155,16 @@ fn non_finite_and_out_of_range_coordinates_give_nan() {
     assert!(v[0].is_nan());
     let edge = MAX_COORDINATE / 2.0;
     assert!(s.height(edge, -edge).is_finite() && s.height(-edge + 0.5, edge - 0.5).is_finite());
-    assert!(s.fill(&Region::new(MAX_COORDINATE - 2.0, 0.0, 4, 1), &mut [0.0; 4]).is_err());
+    assert!(
+        s.fill(&Region::new(MAX_COORDINATE - 2.0, 0.0, 4, 1), &mut [0.0; 4])
+            .is_err()
+    );
     let bad = Region::new(f64::NAN, 0.0, 4, 4);
     assert!(s.fill(&bad, &mut [0.0; 16]).is_err());
-    assert!(s.fill(&Region::new(0.0, 0.0, 4, 4), &mut [0.0; 15]).is_err());
+    assert!(
+        s.fill(&Region::new(0.0, 0.0, 4, 4), &mut [0.0; 15])
+            .is_err()
+    );
 }
 
 /// Mip levels do not alias: a step-4 render has the statistics of 4×4 block averages
@@ -156,7 +196,10 @@ fn zoomed_out_fill_matches_block_averages() {
         (r.data.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / r.data.len() as f64).sqrt()
     };
     let (sb, sc) = (sd(&blocks), sd(&coarse));
-    assert!((sc / sb - 1.0).abs() < 0.1, "std of step-4 fill {sc} vs block averages {sb}");
+    assert!(
+        (sc / sb - 1.0).abs() < 0.1,
+        "std of step-4 fill {sc} vs block averages {sb}"
+    );
     let w1 = wasserstein1_standardised(&blocks, &coarse);
     assert!(w1 < 0.1, "W1 {w1}");
 }

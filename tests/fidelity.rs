@@ -8,12 +8,12 @@
 
 use std::path::{Path, PathBuf};
 
+use surftile::Raster;
 use surftile::analysis::level::level_plane;
 use surftile::bake::Baker;
 use surftile::io::{ReadOptions, read_image, write_heights};
 use surftile::stats::{psd_error, seam_score_by, wasserstein1_standardised};
 use surftile::stream::{BlendSurface, Region, Surface};
-use surftile::Raster;
 
 const W1_BAR: f64 = 0.05;
 const PSD_BAR: f64 = 0.15;
@@ -25,14 +25,20 @@ fn data(rel: &str) -> PathBuf {
 }
 
 fn check_map(rel: &str) -> Vec<String> {
-    let name = Path::new(rel).file_stem().unwrap().to_string_lossy().to_string();
+    let name = Path::new(rel)
+        .file_stem()
+        .unwrap()
+        .to_string_lossy()
+        .to_string();
     let image = read_image(&data(rel), &ReadOptions::default()).expect("read exemplar");
     let baker = Baker::builder().fill_missing(true).seed(1).build().unwrap();
     let (exemplar, _) = baker.preprocess(&image, &name).unwrap();
     let bank = baker.bake(&image, &name, &mut |_| {}).unwrap();
     let surface = BlendSurface::new(&bank, 7).unwrap();
     let mut buf = vec![0.0f32; SIDE * SIDE];
-    surface.fill(&Region::new(0.0, 0.0, SIDE, SIDE), &mut buf).unwrap();
+    surface
+        .fill(&Region::new(0.0, 0.0, SIDE, SIDE), &mut buf)
+        .unwrap();
     let raw = Raster::from_vec(SIDE, SIDE, 1, buf).unwrap();
     let seam = seam_score_by(&raw, |x, y| surface.triangle_id(x as f64, y as f64));
     let mut render = raw.clone();
@@ -53,14 +59,16 @@ fn check_map(rel: &str) -> Vec<String> {
         bank.header.tile_size, bank.header.triangle_edge
     );
     let mut failures = Vec::new();
-    if !(w1 < w1_bar) {
+    if w1.is_nan() || w1 >= w1_bar {
         failures.push(format!("{name}: W1 {w1:.4} ≥ {w1_bar:.4}"));
     }
-    if !(psd < psd_bar) {
+    if psd.is_nan() || psd >= psd_bar {
         failures.push(format!("{name}: PSD error {psd:.4} ≥ {psd_bar:.4}"));
     }
-    if !(seam >= SEAM_RANGE.0 && seam <= SEAM_RANGE.1) {
-        failures.push(format!("{name}: seam score {seam:.4} outside {SEAM_RANGE:?}"));
+    if !(SEAM_RANGE.0..=SEAM_RANGE.1).contains(&seam) {
+        failures.push(format!(
+            "{name}: seam score {seam:.4} outside {SEAM_RANGE:?}"
+        ));
     }
     if !failures.is_empty() {
         let dir = data("target/test-output");
@@ -74,7 +82,16 @@ fn check_map(rel: &str) -> Vec<String> {
 
 #[test]
 fn fidelity_on_measured_rough_maps() {
-    let maps = ["tests/data/al3d-1.npy", "tiles/di-6.npy", "tests/data/opd-1.npy", "tests/data/ps-1.npy"];
+    let maps = [
+        "tests/data/al3d-1.npy",
+        "tiles/di-6.npy",
+        "tests/data/opd-1.npy",
+        "tests/data/ps-1.npy",
+    ];
     let failures: Vec<String> = maps.iter().flat_map(|m| check_map(m)).collect();
-    assert!(failures.is_empty(), "fidelity failures:\n{}", failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "fidelity failures:\n{}",
+        failures.join("\n")
+    );
 }

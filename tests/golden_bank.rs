@@ -33,7 +33,14 @@ fn exemplar() -> ImageFile {
 #[test]
 #[ignore = "rewrites the golden file; run only when the bank format version changes"]
 fn regenerate_golden_bank() {
-    let bank = Baker::builder().patch(8).bank_size(2).seed(5).build().unwrap().bake(&exemplar(), "synthetic", &mut |_| {}).unwrap();
+    let bank = Baker::builder()
+        .patch(8)
+        .bank_size(2)
+        .seed(5)
+        .build()
+        .unwrap()
+        .bake(&exemplar(), "synthetic", &mut |_| {})
+        .unwrap();
     bank.write(&common::repo(GOLDEN)).unwrap();
 }
 
@@ -41,7 +48,10 @@ fn regenerate_golden_bank() {
 fn golden_bank_reads_and_says_what_it_is() {
     let bank = Bank::read(&common::repo(GOLDEN)).expect("the golden v1 bank must stay readable");
     let h = &bank.header;
-    assert_eq!((h.rule, h.method, h.channels, h.tiles), (Rule::Blend, Method::Rpn, 1, 2));
+    assert_eq!(
+        (h.rule, h.method, h.channels, h.tiles),
+        (Rule::Blend, Method::Rpn, 1, 2)
+    );
     assert_eq!(h.tile_size, [8, 8]);
     assert_eq!(h.triangle_edge, 4.0);
     assert_eq!(h.spacing_um, Some(2.5));
@@ -85,7 +95,10 @@ fn golden_bank_samples_its_vertices_as_the_rule_says() {
         let z = ((g - h.levels[0].mean[0]) / h.levels[0].sigma[0]) as f32;
         let expected = lut_eval(&bank.luts[0], z, h.lut_z_range as f32);
         let got = surface.height(x, y);
-        assert!((got - expected).abs() <= 1e-6 * expected.abs().max(1.0), "vertex {i}: {got} vs {expected}");
+        assert!(
+            (got - expected).abs() <= 1e-6 * expected.abs().max(1.0),
+            "vertex {i}: {got} vs {expected}"
+        );
     }
 }
 
@@ -112,12 +125,20 @@ fn validation_catches_what_a_checksum_cannot() {
 
     let mut more_tiles = header.clone();
     more_tiles["tiles"] = serde_json::json!(3);
-    let e = Bank::from_bytes(&frame(1, &serde_json::to_vec(&more_tiles).unwrap(), payload), "x").unwrap_err();
-    assert!(e.to_string().contains("shorter than the header says"), "{e}");
+    let e = Bank::from_bytes(
+        &frame(1, &serde_json::to_vec(&more_tiles).unwrap(), payload),
+        "x",
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("shorter than the header says"),
+        "{e}"
+    );
 
     let mut nan_payload = payload.to_vec();
     nan_payload[40..44].copy_from_slice(&f32::NAN.to_le_bytes());
-    let e = Bank::from_bytes(&frame(1, &bytes[16..16 + header_len], &nan_payload), "x").unwrap_err();
+    let e =
+        Bank::from_bytes(&frame(1, &bytes[16..16 + header_len], &nan_payload), "x").unwrap_err();
     assert!(e.to_string().contains("non-finite"), "{e}");
 
     let e = Bank::from_bytes(&frame(2, &bytes[16..16 + header_len], payload), "x").unwrap_err();

@@ -12,7 +12,9 @@ use surftile::Raster;
 use surftile::io::{ReadOptions, read_image, write_heights, write_png8};
 
 fn ramp(w: usize, h: usize, c: usize) -> Raster {
-    let data = (0..w * h * c).map(|i| -3.0 + 0.0137 * i as f32 + ((i * 31) % 11) as f32 * 0.25).collect();
+    let data = (0..w * h * c)
+        .map(|i| -3.0 + 0.0137 * i as f32 + ((i * 31) % 11) as f32 * 0.25)
+        .collect();
     Raster::from_vec(w, h, c, data).unwrap()
 }
 
@@ -24,7 +26,10 @@ fn png16_round_trip_keeps_heights_to_one_level_and_spacing() {
     write_heights(&p, &r, Some(0.25)).unwrap();
     let back = read_image(&p, &ReadOptions::default()).unwrap();
     assert_eq!(back.spacing_um, Some(0.25));
-    let (lo, hi) = r.data.iter().fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
+    let (lo, hi) = r
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
     let level = (hi - lo) / 65535.0;
     for (a, b) in r.data.iter().zip(&back.raster.data) {
         assert!((a - b).abs() <= 0.5 * level + 1e-5, "{a} vs {b}");
@@ -52,15 +57,31 @@ fn raw_f32_needs_the_right_shape() {
     let r = ramp(8, 5, 1);
     let p = dir.path().join("h.raw");
     write_heights(&p, &r, None).unwrap();
-    let opts = ReadOptions { raw_shape: Some((8, 5, 1)) };
+    let opts = ReadOptions {
+        raw_shape: Some((8, 5, 1)),
+    };
     assert_eq!(read_image(&p, &opts).unwrap().raster, r);
-    let wrong = ReadOptions { raw_shape: Some((8, 6, 1)) };
+    let wrong = ReadOptions {
+        raw_shape: Some((8, 6, 1)),
+    };
     let err = read_image(&p, &wrong).unwrap_err().to_string();
     assert!(err.contains("160 bytes") && err.contains("192"), "{err}");
-    assert!(read_image(&p, &ReadOptions::default()).unwrap_err().to_string().contains("raw-shape"));
+    assert!(
+        read_image(&p, &ReadOptions::default())
+            .unwrap_err()
+            .to_string()
+            .contains("raw-shape")
+    );
 }
 
-fn write_png(path: &Path, w: u32, h: u32, color: png::ColorType, depth: png::BitDepth, bytes: &[u8]) {
+fn write_png(
+    path: &Path,
+    w: u32,
+    h: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    bytes: &[u8],
+) {
     let mut enc = png::Encoder::new(BufWriter::new(File::create(path).unwrap()), w, h);
     enc.set_color(color);
     enc.set_depth(depth);
@@ -72,12 +93,29 @@ fn foreign_pngs_decode_to_their_levels_and_drop_alpha() {
     let dir = tempfile::tempdir().unwrap();
     // 8-bit RGBA, 2×1: alpha dropped, levels kept.
     let p = dir.path().join("rgba.png");
-    write_png(&p, 2, 1, png::ColorType::Rgba, png::BitDepth::Eight, &[10, 20, 30, 255, 40, 50, 60, 0]);
+    write_png(
+        &p,
+        2,
+        1,
+        png::ColorType::Rgba,
+        png::BitDepth::Eight,
+        &[10, 20, 30, 255, 40, 50, 60, 0],
+    );
     let r = read_image(&p, &ReadOptions::default()).unwrap().raster;
-    assert_eq!((r.channels, r.data.clone()), (3, vec![10., 20., 30., 40., 50., 60.]));
+    assert_eq!(
+        (r.channels, r.data.clone()),
+        (3, vec![10., 20., 30., 40., 50., 60.])
+    );
     // 16-bit grey without surftile metadata: raw levels.
     let p = dir.path().join("g16.png");
-    write_png(&p, 2, 1, png::ColorType::Grayscale, png::BitDepth::Sixteen, &[0x12, 0x34, 0xff, 0xff]);
+    write_png(
+        &p,
+        2,
+        1,
+        png::ColorType::Grayscale,
+        png::BitDepth::Sixteen,
+        &[0x12, 0x34, 0xff, 0xff],
+    );
     let r = read_image(&p, &ReadOptions::default()).unwrap();
     assert_eq!(r.raster.data, vec![4660.0, 65535.0]);
     assert_eq!(r.spacing_um, None);
@@ -85,22 +123,30 @@ fn foreign_pngs_decode_to_their_levels_and_drop_alpha() {
     let p = dir.path().join("rgb8.png");
     write_png8(&p, 1, 2, 3, &[1, 2, 3, 4, 5, 6]).unwrap();
     let r = read_image(&p, &ReadOptions::default()).unwrap().raster;
-    assert_eq!((r.width, r.height, r.data), (1, 2, vec![1., 2., 3., 4., 5., 6.]));
+    assert_eq!(
+        (r.width, r.height, r.data),
+        (1, 2, vec![1., 2., 3., 4., 5., 6.])
+    );
 }
 
 #[test]
 fn integer_tiff_decodes() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("u16.tif");
-    let mut enc = tiff::encoder::TiffEncoder::new(BufWriter::new(File::create(&p).unwrap())).unwrap();
-    enc.write_image::<tiff::encoder::colortype::Gray16>(3, 2, &[0, 1, 2, 300, 4000, 65535]).unwrap();
+    let mut enc =
+        tiff::encoder::TiffEncoder::new(BufWriter::new(File::create(&p).unwrap())).unwrap();
+    enc.write_image::<tiff::encoder::colortype::Gray16>(3, 2, &[0, 1, 2, 300, 4000, 65535])
+        .unwrap();
     drop(enc);
     let r = read_image(&p, &ReadOptions::default()).unwrap().raster;
     assert_eq!(r.data, vec![0., 1., 2., 300., 4000., 65535.]);
 }
 
 fn npy_bytes(descr: &str, fortran: bool, shape: &str, data: &[u8]) -> Vec<u8> {
-    let header = format!("{{'descr': '{descr}', 'fortran_order': {}, 'shape': {shape}, }}", if fortran { "True" } else { "False" });
+    let header = format!(
+        "{{'descr': '{descr}', 'fortran_order': {}, 'shape': {shape}, }}",
+        if fortran { "True" } else { "False" }
+    );
     let pad = 64 - (10 + header.len() + 1) % 64;
     let full = format!("{header}{}\n", " ".repeat(pad % 64));
     let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
@@ -118,32 +164,64 @@ fn npy_dtypes_and_fortran_order_decode() {
         std::fs::write(&p, bytes).unwrap();
         read_image(&p, &ReadOptions::default())
     };
-    let f64s: Vec<u8> = [1.5f64, -2.0, 3.25, 4.0, 5.0, 6.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+    let f64s: Vec<u8> = [1.5f64, -2.0, 3.25, 4.0, 5.0, 6.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
     // C order (2, 3): rows [1.5, -2, 3.25], [4, 5, 6].
-    let r = read("c.npy", npy_bytes("<f8", false, "(2, 3)", &f64s)).unwrap().raster;
-    assert_eq!((r.width, r.height, r.data), (3, 2, vec![1.5, -2.0, 3.25, 4.0, 5.0, 6.0]));
+    let r = read("c.npy", npy_bytes("<f8", false, "(2, 3)", &f64s))
+        .unwrap()
+        .raster;
+    assert_eq!(
+        (r.width, r.height, r.data),
+        (3, 2, vec![1.5, -2.0, 3.25, 4.0, 5.0, 6.0])
+    );
     // Fortran order (2, 3): the same bytes are columns: rows [1.5, 3.25, 5], [-2, 4, 6].
-    let r = read("f.npy", npy_bytes("<f8", true, "(2, 3)", &f64s)).unwrap().raster;
+    let r = read("f.npy", npy_bytes("<f8", true, "(2, 3)", &f64s))
+        .unwrap()
+        .raster;
     assert_eq!(r.data, vec![1.5, 3.25, 5.0, -2.0, 4.0, 6.0]);
-    let r = read("u8.npy", npy_bytes("|u1", false, "(1, 3)", &[0, 7, 255])).unwrap().raster;
+    let r = read("u8.npy", npy_bytes("|u1", false, "(1, 3)", &[0, 7, 255]))
+        .unwrap()
+        .raster;
     assert_eq!(r.data, vec![0., 7., 255.]);
     let u16s: Vec<u8> = [9u16, 65535].iter().flat_map(|v| v.to_le_bytes()).collect();
-    let r = read("u16.npy", npy_bytes("<u2", false, "(2, 1)", &u16s)).unwrap().raster;
+    let r = read("u16.npy", npy_bytes("<u2", false, "(2, 1)", &u16s))
+        .unwrap()
+        .raster;
     assert_eq!((r.width, r.data), (1, vec![9., 65535.]));
     // A 1-D array and a truncated file are clear errors.
-    let e = read("1d.npy", npy_bytes("<f8", false, "(6,)", &f64s)).unwrap_err().to_string();
+    let e = read("1d.npy", npy_bytes("<f8", false, "(6,)", &f64s))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("shape"), "{e}");
-    let e = read("cut.npy", npy_bytes("<f8", false, "(4, 3)", &f64s)).unwrap_err().to_string();
+    let e = read("cut.npy", npy_bytes("<f8", false, "(4, 3)", &f64s))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("cut.npy") && e.contains("truncated"), "{e}");
 }
 
 #[test]
 fn measured_map_reads_with_its_known_shape() {
     // MANIFEST: al3d-1 is 296 rows × 200 columns, no missing points, Sq_lev 0.2898 µm.
-    let r = read_image(&common::repo("tests/data/al3d-1.npy"), &ReadOptions::default()).unwrap().raster;
-    assert_eq!((r.width, r.height, r.channels, r.count_nan()), (200, 296, 1, 0));
+    let r = read_image(
+        &common::repo("tests/data/al3d-1.npy"),
+        &ReadOptions::default(),
+    )
+    .unwrap()
+    .raster;
+    assert_eq!(
+        (r.width, r.height, r.channels, r.count_nan()),
+        (200, 296, 1, 0)
+    );
     let mut levelled = r.clone();
     surftile::analysis::level::level_plane(&mut levelled);
-    let sq = (levelled.data.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / levelled.data.len() as f64).sqrt();
+    let sq = (levelled
+        .data
+        .iter()
+        .map(|&v| (v as f64).powi(2))
+        .sum::<f64>()
+        / levelled.data.len() as f64)
+        .sqrt();
     assert!((sq - 0.2898).abs() < 0.0005, "Sq after levelling {sq}");
 }

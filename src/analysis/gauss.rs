@@ -152,7 +152,10 @@ mod tests {
         let (g, sorted) = gaussianize(&values);
         let mean = g.iter().sum::<f64>() / g.len() as f64;
         let var = g.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / g.len() as f64;
-        assert!(mean.abs() < 1e-9 && (var - 1.0).abs() < 2e-3, "{mean} {var}");
+        assert!(
+            mean.abs() < 1e-9 && (var - 1.0).abs() < 2e-3,
+            "{mean} {var}"
+        );
         let lut = inverse_lut(&sorted, 4096, 5.0);
         let mut worst: f64 = 0.0;
         for (gi, &v) in g.iter().zip(&values) {

@@ -97,6 +97,9 @@ mod tests {
         let mut r = Raster::from_vec(w, h, 1, data).unwrap();
         level_plane(&mut r);
         let (a, b, c) = fit_plane(&r.channel_f64(0), w);
-        assert!(a.abs() < 1e-5 && b.abs() < 1e-6 && c.abs() < 1e-6, "{a} {b} {c}");
+        assert!(
+            a.abs() < 1e-5 && b.abs() < 1e-6 && c.abs() < 1e-6,
+            "{a} {b} {c}"
+        );
     }
 }

@@ -117,7 +117,11 @@ mod tests {
         for y in 6..13 {
             for x in 7..15 {
                 let got = r.get(x, y, 0) as f64;
-                assert!((got - f(x, y)).abs() < 1e-3, "({x},{y}): {got} vs {}", f(x, y));
+                assert!(
+                    (got - f(x, y)).abs() < 1e-3,
+                    "({x},{y}): {got} vs {}",
+                    f(x, y)
+                );
             }
         }
     }

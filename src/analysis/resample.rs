@@ -22,12 +22,19 @@ pub fn downsample(raster: &Raster, factor: usize, filter: DownsampleFilter) -> R
     if factor == 1 {
         return Ok(raster.clone());
     }
-    let (w, h, c) = (raster.width / factor, raster.height / factor, raster.channels);
+    let (w, h, c) = (
+        raster.width / factor,
+        raster.height / factor,
+        raster.channels,
+    );
     if w == 0 || h == 0 {
         return Err(Error::param(
             "downsample",
             factor,
-            format!("a factor that leaves at least one pixel of {}×{}", raster.width, raster.height),
+            format!(
+                "a factor that leaves at least one pixel of {}×{}",
+                raster.width, raster.height
+            ),
         ));
     }
     let mut out = Raster::zeros(w, h, c);

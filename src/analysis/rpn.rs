@@ -103,7 +103,9 @@ mod tests {
         (0..w * h)
             .map(|i| {
                 let (x, y) = ((i % w) as f64, (i / w) as f64);
-                mean + (0.7 * x).sin() + 0.5 * (0.31 * y + 0.2 * x).cos() + ((i * 7919) % 17) as f64 * 0.05
+                mean + (0.7 * x).sin()
+                    + 0.5 * (0.31 * y + 0.2 * x).cos()
+                    + ((i * 7919) % 17) as f64 * 0.05
             })
             .collect()
     }
@@ -122,7 +124,10 @@ mod tests {
             let max_mod = a.iter().map(|c| c.norm()).fold(0.0, f64::max);
             for (ca, cb) in a.iter().zip(&b) {
                 let (ma, mb) = (ca.norm(), cb.norm());
-                assert!((ma - mb).abs() <= 1e-4 * ma.max(1e-3 * max_mod), "{w}×{h}: {ma} vs {mb}");
+                assert!(
+                    (ma - mb).abs() <= 1e-4 * ma.max(1e-3 * max_mod),
+                    "{w}×{h}: {ma} vs {mb}"
+                );
             }
             let (ma, mb) = (
                 plane.iter().sum::<f64>() / (w * h) as f64,
@@ -156,7 +161,10 @@ mod tests {
         let mut plan = Fft2::new(w, h);
         let mean = plane.iter().sum::<f64>() / 256.0;
         let centred: Vec<f64> = plane.iter().map(|v| v - mean).collect();
-        let target: Vec<f64> = forward_real(&mut plan, &centred).iter().map(|c| c.norm_sqr()).collect();
+        let target: Vec<f64> = forward_real(&mut plan, &centred)
+            .iter()
+            .map(|c| c.norm_sqr())
+            .collect();
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
         let runs = 400;
         let mut acc = vec![0.0; w * h];

@@ -153,17 +153,29 @@ impl Bank {
             return bad(format!("{} tiles; expected 1 to 4096", h.tiles));
         }
         let [w, ht] = h.tile_size;
-        if !w.is_power_of_two() || !ht.is_power_of_two() || w < 4 || ht < 4 || w > 8192 || ht > 8192 {
-            return bad(format!("tile size {w}×{ht}; expected powers of two from 4 to 8192"));
+        if !w.is_power_of_two() || !ht.is_power_of_two() || w < 4 || ht < 4 || w > 8192 || ht > 8192
+        {
+            return bad(format!(
+                "tile size {w}×{ht}; expected powers of two from 4 to 8192"
+            ));
         }
         if !(h.triangle_edge.is_finite() && h.triangle_edge >= 1.0) {
-            return bad(format!("triangle edge {}; expected ≥ 1 pixel", h.triangle_edge));
+            return bad(format!(
+                "triangle edge {}; expected ≥ 1 pixel",
+                h.triangle_edge
+            ));
         }
         if h.levels.is_empty() || h.levels.len() > 14 {
             return bad(format!("{} mip levels; expected 1 to 14", h.levels.len()));
         }
-        if h.lut_size < 2 || h.lut_size > 1 << 20 || !(h.lut_z_range > 0.0 && h.lut_z_range.is_finite()) {
-            return bad(format!("T⁻¹ table of {} entries over ±{}", h.lut_size, h.lut_z_range));
+        if h.lut_size < 2
+            || h.lut_size > 1 << 20
+            || !(h.lut_z_range > 0.0 && h.lut_z_range.is_finite())
+        {
+            return bad(format!(
+                "T⁻¹ table of {} entries over ±{}",
+                h.lut_size, h.lut_z_range
+            ));
         }
         if let Some(s) = h.spacing_um
             && !(s.is_finite() && s > 0.0)
@@ -176,26 +188,39 @@ impl Bank {
         for (l, info) in h.levels.iter().enumerate() {
             let expected = [(w >> l).max(1), (ht >> l).max(1)];
             if info.size != expected {
-                return bad(format!("level {l} is {:?}; expected {expected:?}", info.size));
+                return bad(format!(
+                    "level {l} is {:?}; expected {expected:?}",
+                    info.size
+                ));
             }
             if info.mean.len() != h.channels || info.sigma.len() != h.channels {
-                return bad(format!("level {l} statistics do not have {} channels", h.channels));
+                return bad(format!(
+                    "level {l} statistics do not have {} channels",
+                    h.channels
+                ));
             }
-            if info.mean.iter().chain(&info.sigma).any(|v| !v.is_finite()) || info.sigma.iter().any(|&s| s < 0.0) {
+            if info.mean.iter().chain(&info.sigma).any(|v| !v.is_finite())
+                || info.sigma.iter().any(|&s| s < 0.0)
+            {
                 return bad(format!("level {l} statistics are not finite"));
             }
             if self.texels[l].len() != h.tiles * expected[0] * expected[1] * h.channels {
                 return bad(format!("level {l} holds {} texels", self.texels[l].len()));
             }
             if self.luts[l].len() != h.channels * h.lut_size {
-                return bad(format!("level {l} table holds {} entries", self.luts[l].len()));
+                return bad(format!(
+                    "level {l} table holds {} entries",
+                    self.luts[l].len()
+                ));
             }
             if self.texels[l].iter().any(|v| !v.is_finite()) {
                 return bad(format!("level {l} has non-finite texels"));
             }
             for table in self.luts[l].chunks_exact(h.lut_size) {
                 if table.iter().any(|v| !v.is_finite()) || table.windows(2).any(|p| p[1] < p[0]) {
-                    return bad(format!("level {l} T⁻¹ table is not finite and non-decreasing"));
+                    return bad(format!(
+                        "level {l} T⁻¹ table is not finite and non-decreasing"
+                    ));
                 }
             }
         }
@@ -207,7 +232,12 @@ impl Bank {
         self.validate("being written")?;
         let header = serde_json::to_vec(&self.header)
             .map_err(|e| Error::bank("being written", format!("header: {e}")))?;
-        let payload: usize = self.texels.iter().chain(&self.luts).map(|v| v.len() * 4).sum();
+        let payload: usize = self
+            .texels
+            .iter()
+            .chain(&self.luts)
+            .map(|v| v.len() * 4)
+            .sum();
         let mut out = Vec::with_capacity(20 + header.len() + payload);
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&VERSION.to_le_bytes());
@@ -276,7 +306,11 @@ impl Bank {
         if offset != payload.len() {
             return Err(bad("the data is longer than the header says"));
         }
-        let bank = Bank { header, texels, luts };
+        let bank = Bank {
+            header,
+            texels,
+            luts,
+        };
         bank.validate(what)?;
         Ok(bank)
     }
@@ -290,7 +324,9 @@ impl Bank {
     /// Writes the bank atomically (temporary file, then rename).
     pub fn write(&self, path: &Path) -> Result<()> {
         let bytes = self.to_bytes()?;
-        crate::io::write_atomically(path, |w| w.write_all(&bytes).map_err(|e| Error::io(path, e)))
+        crate::io::write_atomically(path, |w| {
+            w.write_all(&bytes).map_err(|e| Error::io(path, e))
+        })
     }
 
     /// The summary `surftile info --json` prints.
@@ -318,4 +354,6 @@ impl Bank {
 }
 
 #[cfg(target_endian = "big")]
-compile_error!("the bank format is little-endian and is cast with bytemuck; big-endian targets need byte swapping");
+compile_error!(
+    "the bank format is little-endian and is cast with bytemuck; big-endian targets need byte swapping"
+);

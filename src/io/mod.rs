@@ -120,7 +120,10 @@ pub fn read_image_bytes(
         }
     };
     if image.raster.width == 0 || image.raster.height == 0 {
-        return Err(Error::decode(what, "the image has no pixels (0 width or height)"));
+        return Err(Error::decode(
+            what,
+            "the image has no pixels (0 width or height)",
+        ));
     }
     Ok(image)
 }
@@ -142,8 +145,7 @@ pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> R
         Format::Npy => npy::write(w, raster),
         Format::Raw => {
             for v in &raster.data {
-                std::io::Write::write_all(w, &v.to_le_bytes())
-                    .map_err(|e| Error::io(path, e))?;
+                std::io::Write::write_all(w, &v.to_le_bytes()).map_err(|e| Error::io(path, e))?;
             }
             Ok(())
         }
@@ -197,7 +199,13 @@ fn drop_alpha(data: Vec<f32>, channels: usize) -> (Vec<f32>, usize) {
 
 /// Parses "WxH" or "WxHxC" (also with '×').
 pub fn parse_shape(text: &str) -> Result<(usize, usize, usize)> {
-    let bad = || Error::param("raw-shape", text, "WxH or WxHxC with positive integers, e.g. 512x512");
+    let bad = || {
+        Error::param(
+            "raw-shape",
+            text,
+            "WxH or WxHxC with positive integers, e.g. 512x512",
+        )
+    };
     let parts: Vec<usize> = text
         .split(['x', 'X', '×'])
         .map(|p| p.trim().parse::<usize>().map_err(|_| bad()))

@@ -24,17 +24,49 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         }
     };
     let DType::Plain(ts) = npy.dtype() else {
-        return Err(bad("structured dtype; expected a plain numeric array".into()));
+        return Err(bad(
+            "structured dtype; expected a plain numeric array".into()
+        ));
     };
-    let read_err = |e: std::io::Error| Error::decode(what, format!("truncated or corrupt data ({e})"));
+    let read_err =
+        |e: std::io::Error| Error::decode(what, format!("truncated or corrupt data ({e})"));
     let data: Vec<f32> = match (ts.type_char(), ts.size_field()) {
         (TypeChar::Float, 4) => npy.into_vec::<f32>().map_err(read_err)?,
-        (TypeChar::Float, 8) => npy.into_vec::<f64>().map_err(read_err)?.into_iter().map(|v| v as f32).collect(),
-        (TypeChar::Uint, 1) => npy.into_vec::<u8>().map_err(read_err)?.into_iter().map(f32::from).collect(),
-        (TypeChar::Uint, 2) => npy.into_vec::<u16>().map_err(read_err)?.into_iter().map(f32::from).collect(),
-        (TypeChar::Int, 2) => npy.into_vec::<i16>().map_err(read_err)?.into_iter().map(f32::from).collect(),
-        (TypeChar::Int, 4) => npy.into_vec::<i32>().map_err(read_err)?.into_iter().map(|v| v as f32).collect(),
-        _ => return Err(bad(format!("dtype {ts}; expected float32/64, uint8/16 or int16/32"))),
+        (TypeChar::Float, 8) => npy
+            .into_vec::<f64>()
+            .map_err(read_err)?
+            .into_iter()
+            .map(|v| v as f32)
+            .collect(),
+        (TypeChar::Uint, 1) => npy
+            .into_vec::<u8>()
+            .map_err(read_err)?
+            .into_iter()
+            .map(f32::from)
+            .collect(),
+        (TypeChar::Uint, 2) => npy
+            .into_vec::<u16>()
+            .map_err(read_err)?
+            .into_iter()
+            .map(f32::from)
+            .collect(),
+        (TypeChar::Int, 2) => npy
+            .into_vec::<i16>()
+            .map_err(read_err)?
+            .into_iter()
+            .map(f32::from)
+            .collect(),
+        (TypeChar::Int, 4) => npy
+            .into_vec::<i32>()
+            .map_err(read_err)?
+            .into_iter()
+            .map(|v| v as f32)
+            .collect(),
+        _ => {
+            return Err(bad(format!(
+                "dtype {ts}; expected float32/64, uint8/16 or int16/32"
+            )));
+        }
     };
     if data.len() != w * h * c {
         return Err(bad("data length does not match the shape".into()));
@@ -55,7 +87,8 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     };
     let (data, c) = super::drop_alpha(data, c);
     Ok(ImageFile {
-        raster: Raster::from_vec(w, h, c, data).map_err(|_| bad("data length does not match the shape".into()))?,
+        raster: Raster::from_vec(w, h, c, data)
+            .map_err(|_| bad("data length does not match the shape".into()))?,
         spacing_um: None,
     })
 }
@@ -65,7 +98,11 @@ pub(super) fn write(w: &mut impl Write, raster: &Raster) -> Result<()> {
     let shape: Vec<u64> = if raster.channels == 1 {
         vec![raster.height as u64, raster.width as u64]
     } else {
-        vec![raster.height as u64, raster.width as u64, raster.channels as u64]
+        vec![
+            raster.height as u64,
+            raster.width as u64,
+            raster.channels as u64,
+        ]
     };
     let mut writer = npyz::WriteOptions::<f32>::new()
         .default_dtype()

@@ -12,12 +12,8 @@ const META_KEY: &str = "surftile";
 
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let bad = |e: png::DecodingError| Error::decode(what, format!("not a valid PNG ({e})"));
-    let mut decoder = png::Decoder::new_with_limits(
-        Cursor::new(bytes),
-        png::Limits {
-            bytes: 1 << 32,
-        },
-    );
+    let mut decoder =
+        png::Decoder::new_with_limits(Cursor::new(bytes), png::Limits { bytes: 1 << 32 });
     decoder.set_transformations(Transformations::EXPAND);
     let mut reader = decoder.read_info().map_err(bad)?;
     let meta: Option<HeightMeta> = reader
@@ -39,7 +35,9 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         ColorType::Rgb => 3,
         ColorType::Rgba => 4,
         ColorType::Indexed => {
-            return Err(Error::Unsupported(format!("{what}: palette PNG after expansion")));
+            return Err(Error::Unsupported(format!(
+                "{what}: palette PNG after expansion"
+            )));
         }
     };
     let (levels, max_level) = match info.bit_depth {
@@ -102,7 +100,15 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f6
         };
         bytes.extend_from_slice(&level.to_be_bytes());
     }
-    encode(w, raster.width, raster.height, color, BitDepth::Sixteen, &bytes, Some(&meta))
+    encode(
+        w,
+        raster.width,
+        raster.height,
+        color,
+        BitDepth::Sixteen,
+        &bytes,
+        Some(&meta),
+    )
 }
 
 /// Writes an 8-bit PNG (grey or RGB by `channels`) atomically to `path`.
@@ -141,8 +147,10 @@ fn encode(
     enc.set_color(color);
     enc.set_depth(depth);
     if let Some(meta) = meta {
-        let text = serde_json::to_string(meta).map_err(|e| Error::decode("PNG metadata", e.to_string()))?;
-        enc.add_text_chunk(META_KEY.to_string(), text).map_err(err)?;
+        let text = serde_json::to_string(meta)
+            .map_err(|e| Error::decode("PNG metadata", e.to_string()))?;
+        enc.add_text_chunk(META_KEY.to_string(), text)
+            .map_err(err)?;
     }
     let mut writer = enc.write_header().map_err(err)?;
     writer.write_image_data(bytes).map_err(err)?;

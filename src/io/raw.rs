@@ -4,12 +4,19 @@ use super::ImageFile;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
-pub(super) fn read(bytes: &[u8], what: &str, (w, h, c): (usize, usize, usize)) -> Result<ImageFile> {
+pub(super) fn read(
+    bytes: &[u8],
+    what: &str,
+    (w, h, c): (usize, usize, usize),
+) -> Result<ImageFile> {
     let expected = w * h * c * 4;
     if bytes.len() != expected {
         return Err(Error::decode(
             what,
-            format!("raw f32 file has {} bytes; the shape {w}x{h}x{c} needs {expected}", bytes.len()),
+            format!(
+                "raw f32 file has {} bytes; the shape {w}x{h}x{c} needs {expected}",
+                bytes.len()
+            ),
         ));
     }
     let data = bytes

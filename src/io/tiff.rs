@@ -49,7 +49,10 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     };
     let (w, h) = (w as usize, h as usize);
     if data.len() < w * h * channels {
-        return Err(Error::decode(what, "TIFF holds fewer samples than its size says"));
+        return Err(Error::decode(
+            what,
+            "TIFF holds fewer samples than its size says",
+        ));
     }
     let mut data = data;
     data.truncate(w * h * channels);
@@ -60,7 +63,11 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     })
 }
 
-pub(super) fn write(w: &mut (impl Write + Seek), raster: &Raster, spacing_um: Option<f64>) -> Result<()> {
+pub(super) fn write(
+    w: &mut (impl Write + Seek),
+    raster: &Raster,
+    spacing_um: Option<f64>,
+) -> Result<()> {
     let err = |e: tiff::TiffError| Error::decode("TIFF output", e.to_string());
     let (wd, ht) = (
         u32::try_from(raster.width).map_err(|_| Error::Limits("TIFF width".into()))?,
@@ -74,13 +81,21 @@ pub(super) fn write(w: &mut (impl Write + Seek), raster: &Raster, spacing_um: Op
     let mut enc = TiffEncoder::new(w).map_err(err)?;
     match raster.channels {
         1 => {
-            let mut img = enc.new_image::<colortype::Gray32Float>(wd, ht).map_err(err)?;
-            img.encoder().write_tag(Tag::ImageDescription, meta.as_str()).map_err(err)?;
+            let mut img = enc
+                .new_image::<colortype::Gray32Float>(wd, ht)
+                .map_err(err)?;
+            img.encoder()
+                .write_tag(Tag::ImageDescription, meta.as_str())
+                .map_err(err)?;
             img.write_data(&raster.data).map_err(err)
         }
         3 => {
-            let mut img = enc.new_image::<colortype::RGB32Float>(wd, ht).map_err(err)?;
-            img.encoder().write_tag(Tag::ImageDescription, meta.as_str()).map_err(err)?;
+            let mut img = enc
+                .new_image::<colortype::RGB32Float>(wd, ht)
+                .map_err(err)?;
+            img.encoder()
+                .write_tag(Tag::ImageDescription, meta.as_str())
+                .map_err(err)?;
             img.write_data(&raster.data).map_err(err)
         }
         c => Err(Error::Unsupported(format!("writing a {c}-channel TIFF"))),

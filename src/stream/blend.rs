@@ -82,21 +82,11 @@ struct Vertex {
 }
 
 /// The hashed choices of the last triangle visited; reused while a row stays in it.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 struct VertexCache {
     key: (i64, i64, bool),
     valid: bool,
     verts: [Vertex; 3],
-}
-
-impl Default for VertexCache {
-    fn default() -> Self {
-        VertexCache {
-            key: (0, 0, false),
-            valid: false,
-            verts: [Vertex::default(); 3],
-        }
-    }
 }
 
 impl BlendSurface {
@@ -104,7 +94,10 @@ impl BlendSurface {
     pub fn new(bank: &Bank, seed: u32) -> Result<BlendSurface> {
         let h = &bank.header;
         if h.rule != Rule::Blend {
-            return Err(Error::Unsupported(format!("rule {:?} in a blend surface", h.rule)));
+            return Err(Error::Unsupported(format!(
+                "rule {:?} in a blend surface",
+                h.rule
+            )));
         }
         bank.validate("given to BlendSurface")?;
         let c = h.channels;
@@ -117,7 +110,11 @@ impl BlendSurface {
                 let mut inv_sigma = [0.0f32; 4];
                 for ch in 0..c {
                     mean[ch] = info.mean[ch] as f32;
-                    inv_sigma[ch] = if info.sigma[ch] > 1e-12 { (1.0 / info.sigma[ch]) as f32 } else { 0.0 };
+                    inv_sigma[ch] = if info.sigma[ch] > 1e-12 {
+                        (1.0 / info.sigma[ch]) as f32
+                    } else {
+                        0.0
+                    };
                 }
                 let [w, ht] = info.size;
                 Level {
@@ -191,7 +188,11 @@ impl BlendSurface {
         ];
         // Three explicit calls: `[_; 3].map` went through `array::Drain` and cost a third
         // of a sample's instructions.
-        [self.vertex(pts[0]), self.vertex(pts[1]), self.vertex(pts[2])]
+        [
+            self.vertex(pts[0]),
+            self.vertex(pts[1]),
+            self.vertex(pts[2]),
+        ]
     }
 
     /// Hashed tile and offset of the triangle-grid vertex (i, j).
@@ -201,7 +202,11 @@ impl BlendSurface {
         Vertex {
             // A mask when K is a power of two (the default 8): a division costs more than
             // the rest of the vertex. Both give h mod K.
-            tile: if self.tiles.is_power_of_two() { h[0] & (self.tiles - 1) } else { h[0] % self.tiles },
+            tile: if self.tiles.is_power_of_two() {
+                h[0] & (self.tiles - 1)
+            } else {
+                h[0] % self.tiles
+            },
             ox: h[1] as i64 & self.offset_mask_x,
             oy: h[2] as i64 & self.offset_mask_y,
         }
@@ -212,7 +217,7 @@ impl BlendSurface {
     #[inline(always)]
     fn level_of(&self, footprint: f64) -> (usize, f32) {
         let top = self.levels.len() - 1;
-        if !(footprint > 1.0) || top == 0 {
+        if footprint.is_nan() || footprint <= 1.0 || top == 0 {
             return (0, 0.0);
         }
         let lambda = footprint.log2().min(top as f64);
@@ -347,13 +352,19 @@ fn bilinear<const C: usize>(
     weight: f32,
     acc: &mut [f32; C],
 ) {
-    let (x0, x1) = ((ix & lv.wmask) as usize, (ix.wrapping_add(1) & lv.wmask) as usize);
-    let (y0, y1) = ((iy & lv.hmask) as usize, (iy.wrapping_add(1) & lv.hmask) as usize);
+    let (x0, x1) = (
+        (ix & lv.wmask) as usize,
+        (ix.wrapping_add(1) & lv.wmask) as usize,
+    );
+    let (y0, y1) = (
+        (iy & lv.hmask) as usize,
+        (iy.wrapping_add(1) & lv.hmask) as usize,
+    );
     let base = tile as usize * lv.tile_stride;
     let (r0, r1) = (base + y0 * lv.w * C, base + y1 * lv.w * C);
     let t = &lv.texels;
     debug_assert!(r1.max(r0) + lv.w * C <= t.len() && (tile as usize) < t.len() / lv.tile_stride);
-    for c in 0..C {
+    for (c, slot) in acc.iter_mut().enumerate() {
         // SAFETY: `tile` < K (masked or reduced modulo K in `vertices`), x0, x1 ≤ w − 1
         // and y0, y1 ≤ h − 1 (masked), c < C, and `Bank::validate` checked that each
         // level holds exactly K·w·h·C texels, so every index is below `t.len()`.
@@ -367,7 +378,7 @@ fn bilinear<const C: usize>(
         };
         let top = a + (b - a) * tx;
         let bottom = d + (e - d) * tx;
-        acc[c] += weight * (top + (bottom - top) * ty);
+        *slot += weight * (top + (bottom - top) * ty);
     }
 }
 

@@ -69,8 +69,11 @@ impl Region {
     /// Checks that the region can be filled: finite origin, positive finite step,
     /// non-zero size.
     pub fn validate(&self) -> Result<()> {
-        let far = |v: f64| !(v.abs() < MAX_COORDINATE);
-        let (x1, y1) = (self.x_at(self.width.saturating_sub(1)), self.y_at(self.height.saturating_sub(1)));
+        let far = |v: f64| v.is_nan() || v.abs() >= MAX_COORDINATE;
+        let (x1, y1) = (
+            self.x_at(self.width.saturating_sub(1)),
+            self.y_at(self.height.saturating_sub(1)),
+        );
         if far(self.x) || far(self.y) || far(x1) || far(y1) {
             return Err(Error::param(
                 "region",
@@ -79,7 +82,11 @@ impl Region {
             ));
         }
         if !(self.step.is_finite() && self.step > 0.0) {
-            return Err(Error::param("step", self.step, "a positive number of pixels"));
+            return Err(Error::param(
+                "step",
+                self.step,
+                "a positive number of pixels",
+            ));
         }
         if self.width == 0 || self.height == 0 {
             return Err(Error::param(

@@ -20,6 +20,11 @@ pub fn demo_bank() -> &'static Bank {
     static BANK: OnceLock<Bank> = OnceLock::new();
     BANK.get_or_init(|| {
         let image = read_image(&repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
-        Baker::builder().seed(1).build().unwrap().bake(&image, "di-6", &mut |_| {}).unwrap()
+        Baker::builder()
+            .seed(1)
+            .build()
+            .unwrap()
+            .bake(&image, "di-6", &mut |_| {})
+            .unwrap()
     })
 }
