@@ -120,7 +120,16 @@ pub fn inverse_lut(sorted: &[f64], size: usize, z_range: f64) -> Vec<f32> {
 #[inline(always)]
 pub fn lut_eval(table: &[f32], z: f32, z_range: f32) -> f32 {
     let last = table.len() - 1;
-    let t = ((z + z_range) * (last as f32 / (2.0 * z_range))).clamp(0.0, last as f32);
+    lut_at(table, (z + z_range) * (last as f32 / (2.0 * z_range)))
+}
+
+/// Evaluates a table at fractional index t (linear interpolation, clamped to the
+/// table): the part of [`lut_eval`] after z has been mapped to an index, for callers
+/// that fold that affine map into their own arithmetic.
+#[inline(always)]
+pub fn lut_at(table: &[f32], t: f32) -> f32 {
+    let last = table.len() - 1;
+    let t = t.clamp(0.0, last as f32);
     let i = (t as usize).min(last - 1);
     let f = t - i as f32;
     table[i] + (table[i + 1] - table[i]) * f

@@ -12,7 +12,7 @@
 use std::ops::Range;
 
 use super::{MAX_COORDINATE, Region, Surface};
-use crate::analysis::gauss::lut_eval;
+use crate::analysis::gauss::lut_at;
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
 use crate::hash::hash_cell;
@@ -56,7 +56,11 @@ pub struct BlendSurface {
     offset_mask_x: i64,
     offset_mask_y: i64,
     lut_size: usize,
-    z_range: f32,
+    /// Table index of z = 0.
+    lut_centre: f32,
+    /// `tiles − 1` when the tile count is a power of two (a mask picks the tile),
+    /// otherwise 0 (a division does).
+    tile_mask: u32,
 }
 
 struct Level {
@@ -70,7 +74,9 @@ struct Level {
     tile_stride: usize,
     texels: Vec<f32>,
     mean: [f32; 4],
-    inv_sigma: [f32; 4],
+    /// 1/σ times the T⁻¹ table's entries per standard deviation: Gaussian value to
+    /// table index, before the blend normalisation.
+    lut_scale: [f32; 4],
     lut: Vec<f32>,
 }
 
@@ -107,11 +113,12 @@ impl BlendSurface {
             .enumerate()
             .map(|(l, info)| {
                 let mut mean = [0.0f32; 4];
-                let mut inv_sigma = [0.0f32; 4];
+                let mut lut_scale = [0.0f32; 4];
+                let per_sigma = (h.lut_size - 1) as f64 / (2.0 * h.lut_z_range);
                 for ch in 0..c {
                     mean[ch] = info.mean[ch] as f32;
-                    inv_sigma[ch] = if info.sigma[ch] > 1e-12 {
-                        (1.0 / info.sigma[ch]) as f32
+                    lut_scale[ch] = if info.sigma[ch] > 1e-12 {
+                        (per_sigma / info.sigma[ch]) as f32
                     } else {
                         0.0
                     };
@@ -126,7 +133,7 @@ impl BlendSurface {
                     tile_stride: w * ht * c,
                     texels: bank.texels[l].clone(),
                     mean,
-                    inv_sigma,
+                    lut_scale,
                     lut: bank.luts[l].clone(),
                 }
             })
@@ -144,7 +151,12 @@ impl BlendSurface {
             offset_mask_x: h.tile_size[0] as i64 - 1,
             offset_mask_y: h.tile_size[1] as i64 - 1,
             lut_size: h.lut_size,
-            z_range: h.lut_z_range as f32,
+            lut_centre: (h.lut_size - 1) as f32 / 2.0,
+            tile_mask: if h.tiles.is_power_of_two() {
+                h.tiles as u32 - 1
+            } else {
+                0
+            },
         })
     }
 
@@ -202,8 +214,8 @@ impl BlendSurface {
         Vertex {
             // A mask when K is a power of two (the default 8): a division costs more than
             // the rest of the vertex. Both give h mod K.
-            tile: if self.tiles.is_power_of_two() {
-                h[0] & (self.tiles - 1)
+            tile: if self.tile_mask != 0 || self.tiles == 1 {
+                h[0] & self.tile_mask
             } else {
                 h[0] % self.tiles
             },
@@ -284,8 +296,8 @@ impl BlendSurface {
         let wsum = w[0] + w[1] + w[2];
         let n = self.lut_size;
         for c in 0..C {
-            let z = (g[c] - lv.mean[c] * wsum) * lv.inv_sigma[c] * norm;
-            out[c] = lut_eval(&lv.lut[c * n..(c + 1) * n], z, self.z_range);
+            let t = (g[c] - lv.mean[c] * wsum) * lv.lut_scale[c] * norm + self.lut_centre;
+            out[c] = lut_at(&lv.lut[c * n..(c + 1) * n], t);
         }
     }
 
