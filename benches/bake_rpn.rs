@@ -5,13 +5,16 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use surftile::analysis::rpn::random_phase_noise;
 use surftile::bake::Baker;
 use surftile::fft::{Fft2, forward_real, inverse_real};
-use surftile::io::{Format, ReadOptions, read_image_bytes};
+use surftile::io::{ReadOptions, read_image};
 
 fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("bake_rpn");
@@ -33,13 +36,7 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
-    let image = read_image_bytes(
-        include_bytes!("../tiles/di-6.npy"),
-        Format::Npy,
-        "di-6",
-        &ReadOptions::default(),
-    )
-    .unwrap();
+    let image = read_image(&common::repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
     let baker = Baker::builder().seed(1).build().unwrap();
     g.bench_function("whole_bake_di6_512_k8", |b| {
         b.iter(|| baker.bake(black_box(&image), "di-6", &mut |_| {}).unwrap())

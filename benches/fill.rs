@@ -4,26 +4,15 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use surftile::bake::Baker;
-use surftile::io::{Format, ReadOptions, read_image_bytes};
 use surftile::stream::{BlendSurface, Region, Surface};
 
 fn bench(c: &mut Criterion) {
-    let image = read_image_bytes(
-        include_bytes!("../tiles/di-6.npy"),
-        Format::Npy,
-        "di-6",
-        &ReadOptions::default(),
-    )
-    .unwrap();
-    let bank = Baker::builder()
-        .seed(1)
-        .build()
-        .unwrap()
-        .bake(&image, "di-6", &mut |_| {})
-        .unwrap();
-    let surface = BlendSurface::new(&bank, 3).unwrap();
+    let bank = common::demo_bank();
+    let surface = BlendSurface::new(bank, 3).unwrap();
     let mut g = c.benchmark_group("fill");
     g.sample_size(10).measurement_time(Duration::from_secs(8));
     for side in [1024usize, 4096] {

@@ -4,31 +4,19 @@
 
 use std::hint::black_box;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
-use surftile::bake::Baker;
-use surftile::io::{Format, ReadOptions, read_image_bytes};
 use surftile::stream::{BlendSurface, Surface};
 
 const N: usize = 4096;
 
 fn bench(c: &mut Criterion) {
-    let image = read_image_bytes(
-        include_bytes!("../tiles/di-6.npy"),
-        Format::Npy,
-        "di-6",
-        &ReadOptions::default(),
-    )
-    .unwrap();
-    let bank = Baker::builder()
-        .seed(1)
-        .bank_size(std::env::var("K").map(|k| k.parse().unwrap()).unwrap_or(8))
-        .build()
-        .unwrap()
-        .bake(&image, "di-6", &mut |_| {})
-        .unwrap();
-    let surface = BlendSurface::new(&bank, 3).unwrap();
+    let bank = common::demo_bank();
+    let surface = BlendSurface::new(bank, 3).unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
     let near: Vec<(f64, f64)> = (0..N)
         .map(|_| {
