@@ -27,6 +27,16 @@ fn bench(c: &mut Criterion) {
         })
         .collect();
     let far: Vec<(f64, f64)> = near.iter().map(|&(x, y)| (x + 1e9, y - 1e9)).collect();
+    // Supplementary, not the acceptance figure: a renderer's pattern, a 64×64 block of
+    // pixels in raster order with random sub-pixel jitter.
+    let coherent: Vec<(f64, f64)> = (0..N)
+        .map(|i| {
+            (
+                (i % 64) as f64 + rng.random::<f64>(),
+                (i / 64) as f64 + rng.random::<f64>(),
+            )
+        })
+        .collect();
 
     let mut g = c.benchmark_group("sample");
     g.throughput(Throughput::Elements(N as u64));
@@ -40,6 +50,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("height_at_1e9", |b| {
         b.iter(|| {
             far.iter()
+                .map(|&(x, y)| surface.height(black_box(x), black_box(y)))
+                .sum::<f32>()
+        })
+    });
+    g.bench_function("height_coherent_64x64_block", |b| {
+        b.iter(|| {
+            coherent
+                .iter()
                 .map(|&(x, y)| surface.height(black_box(x), black_box(y)))
                 .sum::<f32>()
         })
