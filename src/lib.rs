@@ -32,6 +32,7 @@ pub mod error;
 pub mod fft;
 pub mod hash;
 pub mod io;
+pub mod lattice;
 pub mod raster;
 pub mod render;
 pub mod shade;
