@@ -4,6 +4,7 @@ pub mod gauss;
 pub mod level;
 pub mod missing;
 pub mod periodic;
+pub mod periodicity;
 pub mod resample;
 pub mod rpn;
 pub mod taper;
