@@ -35,6 +35,15 @@ fn exemplar() -> String {
     common::repo("tiles/di-6.npy").display().to_string()
 }
 
+/// `surftile render BANK --x 0 --y 0 --w W --h H --out OUT EXTRA…`
+fn render(dir: &Path, bank: &str, (w, h): (&str, &str), out: &str, extra: &[&str]) -> Run {
+    let mut args = vec![
+        "render", bank, "--x", "0", "--y", "0", "--w", w, "--h", h, "--out", out,
+    ];
+    args.extend_from_slice(extra);
+    surftile(dir, &args)
+}
+
 /// Bakes the bundled exemplar into `dir/good.bank` through the CLI.
 fn bake_good(dir: &Path) -> PathBuf {
     let r = surftile(
@@ -85,13 +94,7 @@ fn truncated_bank_is_refused() {
     let good = bake_good(dir.path());
     let bytes = std::fs::read(&good).unwrap();
     std::fs::write(dir.path().join("cut.bank"), &bytes[..bytes.len() / 2]).unwrap();
-    let r = surftile(
-        dir.path(),
-        &[
-            "render", "cut.bank", "--x", "0", "--y", "0", "--w", "16", "--h", "16", "--out",
-            "o.png",
-        ],
-    );
+    let r = render(dir.path(), "cut.bank", ("16", "16"), "o.png", &[]);
     assert_clean_failure(dir.path(), &r, "bank cut.bank", "o.png");
 }
 
@@ -105,23 +108,7 @@ fn bank_with_one_flipped_byte_is_refused() {
     std::fs::write(dir.path().join("flip.bank"), &bytes).unwrap();
     let r = surftile(dir.path(), &["sample", "flip.bank", "1", "2"]);
     assert_clean_failure(dir.path(), &r, "checksum", "none");
-    let r = surftile(
-        dir.path(),
-        &[
-            "render",
-            "flip.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "8",
-            "--h",
-            "8",
-            "--out",
-            "o.npy",
-        ],
-    );
+    let r = render(dir.path(), "flip.bank", ("8", "8"), "o.npy", &[]);
     assert_clean_failure(dir.path(), &r, "checksum", "o.npy");
 }
 
@@ -184,67 +171,23 @@ fn nan_npy_without_fill_missing_is_refused_and_filled_with_it() {
 fn zero_and_negative_sizes_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     bake_good(dir.path());
-    for (flag, value, msg) in [
-        ("--w", "0", "invalid w = 0"),
-        ("--w", "-5", "invalid w = -5"),
-        ("--h", "-1", "invalid h = -1"),
+    for (w, h, msg) in [
+        ("0", "8", "invalid w = 0"),
+        ("-5", "8", "invalid w = -5"),
+        ("8", "-1", "invalid h = -1"),
     ] {
-        let mut args = vec![
-            "render",
-            "good.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "8",
-            "--h",
-            "8",
-            "--out",
-            "o.png",
-        ];
-        let at = args.iter().position(|a| *a == flag).unwrap();
-        args[at + 1] = value;
-        let r = surftile(dir.path(), &args);
+        let r = render(dir.path(), "good.bank", (w, h), "o.png", &[]);
         assert_clean_failure(dir.path(), &r, msg, "o.png");
     }
-    let r = surftile(
+    let r = render(
         dir.path(),
-        &[
-            "render",
-            "good.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "8",
-            "--h",
-            "8",
-            "--step",
-            "-2",
-            "--out",
-            "o.png",
-        ],
+        "good.bank",
+        ("8", "8"),
+        "o.png",
+        &["--step", "-2"],
     );
     assert_clean_failure(dir.path(), &r, "invalid step", "o.png");
-    let r = surftile(
-        dir.path(),
-        &[
-            "render",
-            "good.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "100000",
-            "--h",
-            "100000",
-            "--out",
-            "o.png",
-        ],
-    );
+    let r = render(dir.path(), "good.bank", ("100000", "100000"), "o.png", &[]);
     assert_clean_failure(dir.path(), &r, "too large", "o.png");
     let r = surftile(dir.path(), &["sample", "good.bank", "NaN", "0"]);
     assert_clean_failure(dir.path(), &r, "invalid x", "none");
@@ -265,23 +208,7 @@ fn missing_file_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let r = surftile(dir.path(), &["bake", "nowhere.png", "--out", "b.bank"]);
     assert_clean_failure(dir.path(), &r, "nowhere.png", "b.bank");
-    let r = surftile(
-        dir.path(),
-        &[
-            "render",
-            "nowhere.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "8",
-            "--h",
-            "8",
-            "--out",
-            "o.png",
-        ],
-    );
+    let r = render(dir.path(), "nowhere.bank", ("8", "8"), "o.png", &[]);
     assert_clean_failure(dir.path(), &r, "nowhere.bank", "o.png");
 }
 
@@ -339,43 +266,9 @@ fn bake_info_render_sample_and_stats_work_together() {
     assert_eq!((npy.width, npy.height), (64, 48));
     let s = BlendSurface::new(&bank, 0).unwrap();
     assert_eq!(npy.get(3, 2, 0), s.height(-7.0, 7.0));
-    let r = surftile(
-        dir.path(),
-        &[
-            "render",
-            "good.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "32",
-            "--h",
-            "32",
-            "--shade",
-            "--out",
-            "s.png",
-        ],
-    );
+    let r = render(dir.path(), "good.bank", ("32", "32"), "s.png", &["--shade"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
-    let r = surftile(
-        dir.path(),
-        &[
-            "render",
-            "good.bank",
-            "--x",
-            "0",
-            "--y",
-            "0",
-            "--w",
-            "32",
-            "--h",
-            "32",
-            "--shade",
-            "--out",
-            "s.npy",
-        ],
-    );
+    let r = render(dir.path(), "good.bank", ("32", "32"), "s.npy", &["--shade"]);
     assert_clean_failure(dir.path(), &r, "with --shade", "s.npy");
 
     let r = surftile(dir.path(), &["stats", &exemplar(), "r.npy", "--cell", "16"]);
