@@ -225,7 +225,8 @@ fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
     })
 }
 
-fn finite(name: &str, v: f64) -> Result<f64> {
+/// A coordinate from the command line, inside the surface's range.
+fn coordinate(name: &str, v: f64) -> Result<f64> {
     if v.abs() < surftile::stream::MAX_COORDINATE {
         Ok(v)
     } else {
@@ -327,8 +328,8 @@ fn run(command: Command) -> Result<()> {
             shade,
         } => {
             let region = Region::new(
-                finite("x", x)?,
-                finite("y", y)?,
+                coordinate("x", x)?,
+                coordinate("y", y)?,
                 checked_size("w", w)?,
                 checked_size("h", h)?,
             )
@@ -355,7 +356,7 @@ fn run(command: Command) -> Result<()> {
             Ok(())
         }
         Command::Sample { bank, x, y, seed } => {
-            let (x, y) = (finite("x", x)?, finite("y", y)?);
+            let (x, y) = (coordinate("x", x)?, coordinate("y", y)?);
             let (_, surface) = load_surface(&bank, seed)?;
             let mut v = vec![0.0f32; surface.channels()];
             surface.sample(x, y, &mut v);
