@@ -40,10 +40,49 @@ pub fn pcg4d(v: [u32; 4]) -> [u32; 4] {
     [x, y, z, w]
 }
 
+/// PCG 3-D hash (Jarzynski & Olano 2020, `pcg3d`): 3 words in, 3 words out. One
+/// multiply fewer per round than [`pcg4d`], which shortens the latency chain in front of
+/// every texel fetch of the blend rule.
+#[inline(always)]
+pub fn pcg3d(v: [u32; 3]) -> [u32; 3] {
+    let mut x = v[0].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+    let mut y = v[1].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+    let mut z = v[2].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+    x = x.wrapping_add(y.wrapping_mul(z));
+    y = y.wrapping_add(z.wrapping_mul(x));
+    z = z.wrapping_add(x.wrapping_mul(y));
+    x ^= x >> 16;
+    y ^= y >> 16;
+    z ^= z >> 16;
+    x = x.wrapping_add(y.wrapping_mul(z));
+    y = y.wrapping_add(z.wrapping_mul(x));
+    z = z.wrapping_add(x.wrapping_mul(y));
+    [x, y, z]
+}
+
+/// Hash of (seed, triangle-grid vertex (i, j)) for the blend rule: `pcg3d` of the folded
+/// cell and the seed. Word 0 picks the tile ([`pick_tile`]); word 1 gives the x offset
+/// (low 16 bits) and the y offset (high 16 bits); word 2 is spare.
+#[inline(always)]
+pub fn hash_vertex(seed: u32, i: i64, j: i64) -> [u32; 3] {
+    pcg3d([fold_cell(i), fold_cell(j), seed])
+}
+
 /// Hash of (seed, cell (i, j), stream): the entry point every placement rule uses.
 #[inline(always)]
 pub fn hash_cell(seed: u32, i: i64, j: i64, stream: u32) -> [u32; 4] {
     pcg4d([seed, fold_cell(i), fold_cell(j), stream])
+}
+
+/// Tile index in 0..k from a hash word: ⌊(h >> 16) · k / 2¹⁶⌋.
+///
+/// Multiply-shift range reduction (Lemire 2019) on the word's high half: no division and
+/// no branch, in 32-bit arithmetic the WGSL twin can repeat. Uniform to within 1/2¹⁶ for
+/// any k ≤ 2¹⁶ (banks hold at most 4096 tiles).
+#[inline(always)]
+pub fn pick_tile(h: u32, k: u32) -> u32 {
+    debug_assert!(k <= 1 << 16);
+    ((h >> 16) * k) >> 16
 }
 
 #[cfg(test)]
@@ -57,6 +96,48 @@ mod tests {
         assert_eq!(pcg4d([0, 0, 0, 0]), KNOWN_0000);
         assert_eq!(pcg4d([1, 2, 3, 4]), KNOWN_1234);
     }
+    /// Known answers computed independently (Python, 32-bit masked arithmetic).
+    #[test]
+    fn pcg3d_known_answers() {
+        assert_eq!(
+            pcg3d([0, 0, 0]),
+            [2_611_992_518, 2_833_812_075, 1_058_359_340]
+        );
+        assert_eq!(
+            pcg3d([1, 2, 3]),
+            [4_204_755_366, 1_223_881_804, 1_500_469_937]
+        );
+        assert_eq!(
+            pcg3d([u32::MAX, 7, 123_456_789]),
+            [2_942_237_977, 729_645, 3_580_806_132]
+        );
+    }
+
+    /// Tile picks are uniform over K (power of two or not) within sampling error.
+    #[test]
+    fn pick_tile_is_uniform_and_in_range() {
+        for k in [1u32, 3, 7, 8, 4096] {
+            let mut count = vec![0u32; k as usize];
+            let n = 60_000u32;
+            for c in 0..n {
+                let t = pick_tile(hash_vertex(5, (c % 300) as i64, (c / 300) as i64)[0], k);
+                count[t as usize] += 1;
+            }
+            let expect = n as f64 / k as f64;
+            if k <= 8 {
+                for &m in &count {
+                    // 5 standard deviations of a binomial count.
+                    assert!(
+                        (m as f64 - expect).abs() < 5.0 * expect.sqrt(),
+                        "k={k}: {count:?}"
+                    );
+                }
+            } else {
+                assert!(count.iter().filter(|&&m| m > 0).count() > 4000, "k={k}");
+            }
+        }
+    }
+
     const KNOWN_0000: [u32; 4] = [251_852_841, 760_645_481, 850_445_371, 3_542_436_074];
     const KNOWN_1234: [u32; 4] = [908_250_390, 4_044_648_920, 3_775_961_919, 45_698_095];
 

@@ -124,22 +124,34 @@ fn seed_changes_the_surface_and_only_the_seed() {
 }
 
 /// Far from the origin the surface has the same statistics as near it (no precision
-/// loss): W1 between 256² patches at 0 and at 1e9 below 0.1, and neighbouring samples
-/// there still differ.
+/// loss), and neighbouring samples there still differ.
+///
+/// One 256² patch is a poor sample of a field whose features span a triangle edge: W1
+/// between two such patches near the origin ranges up to 0.15. So each side pools 64
+/// patches of 128² spread over 3·10⁵ pixels. Between two such pools near the origin W1
+/// was at most 0.045 over four seeds; the bar is 0.06. Lost precision at 10⁹ (f32
+/// coordinates, say) would quantise the texel positions and put W1 far above it.
 #[test]
 fn far_coordinates_keep_the_statistics() {
     let s = surface();
-    let fill = |x: f64, y: f64| {
-        let r = Region::new(x, y, 256, 256);
-        let mut v = vec![0.0f32; r.len()];
-        s.fill(&r, &mut v).unwrap();
-        Raster::from_vec(256, 256, 1, v).unwrap()
+    let pool = |x0: f64, y0: f64| {
+        let mut all = Vec::new();
+        for k in 0..64 {
+            let r = Region::new(x0 + k as f64 * 5000.0, y0 - k as f64 * 3100.0, 128, 128);
+            let mut v = vec![0.0f32; r.len()];
+            s.fill(&r, &mut v).unwrap();
+            all.extend(v);
+        }
+        Raster::from_vec(128, 128 * 64, 1, all).unwrap()
     };
-    let (near, far) = (fill(0.0, 0.0), fill(1e9, -1e9));
+    let (near, far) = (pool(0.0, 0.0), pool(1e9, -1e9));
     let w1 = wasserstein1_standardised(&near, &far);
-    assert!(w1 < 0.1, "W1 near vs far {w1}");
+    assert!(w1 < 0.06, "W1 near vs far {w1}");
     let distinct = far.data.windows(2).filter(|p| p[0] != p[1]).count();
-    assert!(distinct > 60_000);
+    assert!(
+        distinct > far.data.len() * 9 / 10,
+        "{distinct} distinct neighbours"
+    );
 }
 
 /// Non-finite coordinates and coordinates beyond ±2^52 give NaN, not a panic; just

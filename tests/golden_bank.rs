@@ -9,7 +9,7 @@ use surftile::Raster;
 use surftile::analysis::gauss::lut_eval;
 use surftile::bake::Baker;
 use surftile::bank::{Bank, Method, Rule};
-use surftile::hash::hash_cell;
+use surftile::hash::{hash_vertex, pick_tile};
 use surftile::io::ImageFile;
 use surftile::stream::{BlendSurface, Surface};
 
@@ -87,9 +87,9 @@ fn golden_bank_samples_its_vertices_as_the_rule_says() {
     // Vertices with j = 0 lie at (E·i, 0): integer coordinates for E = 4.
     for i in -5i64..5 {
         let (x, y) = (e * i as f64, 0.0);
-        let hsh = hash_cell(seed, i, 0, 0);
-        let tile = (hsh[0] % h.tiles as u32) as usize;
-        let (ox, oy) = ((hsh[1] as i64 & 7) as usize, (hsh[2] as i64 & 7) as usize);
+        let hsh = hash_vertex(seed, i, 0);
+        let tile = pick_tile(hsh[0], h.tiles as u32) as usize;
+        let (ox, oy) = ((hsh[1] & 7) as usize, ((hsh[1] >> 16) & 7) as usize);
         let tx = ((x as i64 + ox as i64).rem_euclid(8)) as usize;
         let g = bank.texels[0][tile * 64 + oy * w + tx] as f64;
         let z = ((g - h.levels[0].mean[0]) / h.levels[0].sigma[0]) as f32;

@@ -12,10 +12,9 @@
 use std::ops::Range;
 
 use super::{MAX_COORDINATE, Region, Surface};
-use crate::analysis::gauss::lut_at;
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
-use crate::hash::hash_cell;
+use crate::hash::{hash_vertex, pick_tile};
 
 const SQRT3: f64 = 1.732_050_807_568_877_2;
 
@@ -26,10 +25,17 @@ const SQRT3: f64 = 1.732_050_807_568_877_2;
 /// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call.
 /// The correction is arithmetic, not a branch: for random coordinates its sign is a coin
 /// flip, and each mispredicted branch flushes the overlap between consecutive samples.
-/// Callers keep |x| below 2⁶³ (coordinates are checked against [`MAX_COORDINATE`]).
+///
+/// # Safety
+/// `x` must be finite with |x| < 2⁶³: the conversion skips the saturation and NaN
+/// handling that `as` adds (five instructions per call on the sample path). Callers reach
+/// it only with coordinates checked against [`MAX_COORDINATE`] by [`in_range`], scaled by
+/// at most 2/(√3·E) with E ≥ 1, or with offsets reduced into a tile.
 #[inline(always)]
-fn floor_split(x: f64) -> (i64, f64) {
-    let t = x as i64;
+unsafe fn floor_split(x: f64) -> (i64, f64) {
+    debug_assert!(x.abs() < 9.2e18, "floor_split({x})");
+    // SAFETY: the caller guarantees x is finite and inside the i64 range.
+    let t = unsafe { x.to_int_unchecked::<i64>() };
     let i = t.wrapping_sub((t as f64 > x) as i64);
     (i, x - i as f64)
 }
@@ -55,12 +61,13 @@ pub struct BlendSurface {
     skew_c: f64,
     offset_mask_x: i64,
     offset_mask_y: i64,
+    /// 16 − log2 K when K is a power of two below 2¹⁶, else 0 (see [`Self::vertex`]).
+    tile_shift: u32,
     lut_size: usize,
+    /// `lut_size − 1` as f32: the last fractional table index.
+    lut_last: f32,
     /// Table index of z = 0.
     lut_centre: f32,
-    /// `tiles − 1` when the tile count is a power of two (a mask picks the tile),
-    /// otherwise 0 (a division does).
-    tile_mask: u32,
 }
 
 struct Level {
@@ -77,7 +84,9 @@ struct Level {
     /// 1/σ times the T⁻¹ table's entries per standard deviation: Gaussian value to
     /// table index, before the blend normalisation.
     lut_scale: [f32; 4],
-    lut: Vec<f32>,
+    /// T⁻¹ per channel as (value, next value − value) pairs, the last pair's slope 0:
+    /// one load and one multiply-add per lookup.
+    lut: Vec<[f32; 2]>,
 }
 
 #[derive(Clone, Copy, Default)]
@@ -134,7 +143,15 @@ impl BlendSurface {
                     texels: bank.texels[l].clone(),
                     mean,
                     lut_scale,
-                    lut: bank.luts[l].clone(),
+                    lut: bank.luts[l]
+                        .chunks_exact(h.lut_size)
+                        .flat_map(|table| {
+                            (0..table.len()).map(|k| {
+                                let next = table.get(k + 1).copied().unwrap_or(table[k]);
+                                [table[k], next - table[k]]
+                            })
+                        })
+                        .collect(),
                 }
             })
             .collect();
@@ -150,13 +167,14 @@ impl BlendSurface {
             skew_c: 2.0 / (SQRT3 * e),
             offset_mask_x: h.tile_size[0] as i64 - 1,
             offset_mask_y: h.tile_size[1] as i64 - 1,
-            lut_size: h.lut_size,
-            lut_centre: (h.lut_size - 1) as f32 / 2.0,
-            tile_mask: if h.tiles.is_power_of_two() {
-                h.tiles as u32 - 1
+            tile_shift: if h.tiles.is_power_of_two() {
+                16 - h.tiles.trailing_zeros()
             } else {
                 0
             },
+            lut_size: h.lut_size,
+            lut_last: (h.lut_size - 1) as f32,
+            lut_centre: (h.lut_size - 1) as f32 / 2.0,
         })
     }
 
@@ -166,20 +184,28 @@ impl BlendSurface {
     }
 
     /// The triangle that contains (x, y): skewed cell (i, j) and which half. Pixels with
-    /// different ids lie in different triangles (used by seam scores).
+    /// different ids lie in different triangles (used by seam scores). Points outside
+    /// the coordinate range (±[`MAX_COORDINATE`], NaN) share the id `(i64::MIN, i64::MIN,
+    /// false)`.
     pub fn triangle_id(&self, x: f64, y: f64) -> (i64, i64, bool) {
+        if !in_range(x, y) {
+            return (i64::MIN, i64::MIN, false);
+        }
         let (i, j, lower, _) = self.triangle(x, y);
         (i, j, lower)
     }
 
     /// Skewed cell, half (true = the one holding the cell's origin) and barycentric
     /// weights of the three vertices (ALGORITHMS.md §3). Selects, not branches: which
-    /// half a random point falls in is a coin flip (see [`floor_split`]).
+    /// half a random point falls in is a coin flip (see [`floor_split`]). Only for
+    /// points that passed [`in_range`].
     #[inline(always)]
     fn triangle(&self, x: f64, y: f64) -> (i64, i64, bool, [f32; 3]) {
+        debug_assert!(in_range(x, y));
         let sy = y * self.skew_c;
         let sx = x * self.skew_a - y * self.skew_b;
-        let ((bx, fx), (by, fy)) = (floor_split(sx), floor_split(sy));
+        // SAFETY: |x|, |y| < 2⁵² (in_range) and E ≥ 1 (Bank::validate), so |sx|, |sy| < 2⁵⁴.
+        let ((bx, fx), (by, fy)) = unsafe { (floor_split(sx), floor_split(sy)) };
         let z = 1.0 - fx - fy;
         let lower = z > 0.0;
         let w0 = if lower { z } else { -z };
@@ -210,17 +236,17 @@ impl BlendSurface {
     /// Hashed tile and offset of the triangle-grid vertex (i, j).
     #[inline(always)]
     fn vertex(&self, (i, j): (i64, i64)) -> Vertex {
-        let h = hash_cell(self.seed, i, j, 0);
+        let h = hash_vertex(self.seed, i, j);
         Vertex {
-            // A mask when K is a power of two (the default 8): a division costs more than
-            // the rest of the vertex. Both give h mod K.
-            tile: if self.tile_mask != 0 || self.tiles == 1 {
-                h[0] & self.tile_mask
+            // For K = 2ᵏ, pick_tile is a shift by 32 − k: the same tile, one cycle
+            // sooner on the latency chain that ends in the texel loads.
+            tile: if self.tile_shift != 0 {
+                (h[0] >> 16) >> self.tile_shift
             } else {
-                h[0] % self.tiles
+                pick_tile(h[0], self.tiles)
             },
             ox: h[1] as i64 & self.offset_mask_x,
-            oy: h[2] as i64 & self.offset_mask_y,
+            oy: (h[1] >> 16) as i64 & self.offset_mask_y,
         }
     }
 
@@ -266,6 +292,12 @@ impl BlendSurface {
     }
 
     /// Blend of the three vertices' patches at level `l`, mapped through T⁻¹.
+    ///
+    /// Variance-preserving blend (Heitz & Neyret 2018, eq. 4 with the mean restored):
+    /// μ + Σ wₖ(Gₖ − μ)/√(Σ wₖ²). Written as one weighted sum of the twelve texels (three
+    /// vertices × four bilinear corners) whose weights — corner × vertex weight ×
+    /// 1/√(Σ wₖ²) × table scale — are known before the texels arrive, so the latency
+    /// after the loads is one multiply and a four-deep addition tree, then the table.
     #[inline(always)]
     fn eval_level<const C: usize>(
         &self,
@@ -277,28 +309,58 @@ impl BlendSurface {
         out: &mut [f32; C],
     ) {
         let lv = &self.levels[l];
-        let ((xi, fx), (yi, fy)) = (floor_split(x), floor_split(y));
-        let mut g = [0.0f32; C];
-        for (v, &wk) in verts.iter().zip(w) {
+        // SAFETY: every caller checked (x, y) with in_range: |x|, |y| < 2⁵².
+        let ((xi, fx), (yi, fy)) = unsafe { (floor_split(x), floor_split(y)) };
+        let norm = 1.0 / (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        let wsum = w[0] + w[1] + w[2];
+        let mut g = [[0.0f32; C]; 3];
+        for (k, v) in verts.iter().enumerate() {
             let (xr, yr) = (xi.wrapping_add(v.ox), yi.wrapping_add(v.oy));
-            if l == 0 {
-                bilinear::<C>(lv, v.tile, xr, yr, fx as f32, fy as f32, wk, &mut g);
+            let (ix, iy, tx, ty) = if l == 0 {
+                (xr, yr, fx as f32, fy as f32)
             } else {
                 // Reduce modulo the level-0 period first so the f64 stays small and exact.
                 let px = ((xr & self.offset_mask_x) as f64 + fx - lv.centre) * lv.scale;
                 let py = ((yr & self.offset_mask_y) as f64 + fy - lv.centre) * lv.scale;
-                let ((ix, tx), (iy, ty)) = (floor_split(px), floor_split(py));
-                bilinear::<C>(lv, v.tile, ix, iy, tx as f32, ty as f32, wk, &mut g);
-            }
+                // SAFETY: px, py lie within a tile (a few thousand texels at most).
+                let ((ix, tx), (iy, ty)) = unsafe { (floor_split(px), floor_split(py)) };
+                (ix, iy, tx as f32, ty as f32)
+            };
+            let wk = w[k] * norm;
+            let corner = [
+                (1.0 - tx) * (1.0 - ty) * wk,
+                tx * (1.0 - ty) * wk,
+                (1.0 - tx) * ty * wk,
+                tx * ty * wk,
+            ];
+            g[k] = bilinear::<C>(lv, v.tile, ix, iy, &corner);
         }
-        // Variance-preserving blend: μ + Σ wᵢ(Gᵢ − μ) / √(Σ wᵢ²).
-        let norm = 1.0 / (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-        let wsum = w[0] + w[1] + w[2];
-        let n = self.lut_size;
         for c in 0..C {
-            let t = (g[c] - lv.mean[c] * wsum) * lv.lut_scale[c] * norm + self.lut_centre;
-            out[c] = lut_at(&lv.lut[c * n..(c + 1) * n], t);
+            // t = (Σ wₖGₖ/√Σw² − μ·Σw/√Σw²)·scale + centre, the offset folded off the path.
+            let offset = self.lut_centre - lv.mean[c] * wsum * norm * lv.lut_scale[c];
+            let t = ((g[0][c] + g[1][c]) + g[2][c]) * lv.lut_scale[c] + offset;
+            out[c] = self.lut_eval(&lv.lut, c, t);
         }
+    }
+
+    /// Linear interpolation in channel `c`'s T⁻¹ table at fractional index `t`, clamped to
+    /// the table (NaN reads entry 0): the values of
+    /// [`lut_at`](crate::analysis::gauss::lut_at) up to rounding, without its bounds
+    /// checks and saturating conversions, which on the sample path cost as much as the
+    /// blend itself.
+    #[inline(always)]
+    fn lut_eval(&self, lut: &[[f32; 2]], c: usize, t: f32) -> f32 {
+        // `max` returns 0 for NaN; `lut_last` = n − 1 > 0.
+        let t = t.max(0.0).min(self.lut_last);
+        // SAFETY: t ∈ [0, n − 1] is finite and small, so the conversion is exact.
+        let i = unsafe { t.to_int_unchecked::<u32>() } as usize;
+        let f = t - i as f32;
+        let at = c * self.lut_size + i;
+        debug_assert!(at < lut.len());
+        // SAFETY: i ≤ n − 1 and c < C ≤ channels, and Bank::validate checked that each
+        // level holds channels × n entries, so at < lut.len().
+        let [a, slope] = unsafe { *lut.get_unchecked(at) };
+        a + slope * f
     }
 
     fn sample_c<const C: usize>(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
@@ -350,20 +412,16 @@ impl BlendSurface {
     }
 }
 
-/// Adds `weight ×` the bilinear interpolation of tile `tile` at texel (ix + tx, iy + ty)
-/// (periodic wrap) to `acc`.
+/// Σ corner weights × texels of tile `tile` around texel (ix, iy) (periodic wrap),
+/// per channel: `corner` weighs (ix, iy), (ix+1, iy), (ix, iy+1), (ix+1, iy+1).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn bilinear<const C: usize>(
     lv: &Level,
     tile: u32,
     ix: i64,
     iy: i64,
-    tx: f32,
-    ty: f32,
-    weight: f32,
-    acc: &mut [f32; C],
-) {
+    corner: &[f32; 4],
+) -> [f32; C] {
     let (x0, x1) = (
         (ix & lv.wmask) as usize,
         (ix.wrapping_add(1) & lv.wmask) as usize,
@@ -376,10 +434,11 @@ fn bilinear<const C: usize>(
     let (r0, r1) = (base + y0 * lv.w * C, base + y1 * lv.w * C);
     let t = &lv.texels;
     debug_assert!(r1.max(r0) + lv.w * C <= t.len() && (tile as usize) < t.len() / lv.tile_stride);
+    let mut acc = [0.0f32; C];
     for (c, slot) in acc.iter_mut().enumerate() {
-        // SAFETY: `tile` < K (masked or reduced modulo K in `vertices`), x0, x1 ≤ w − 1
-        // and y0, y1 ≤ h − 1 (masked), c < C, and `Bank::validate` checked that each
-        // level holds exactly K·w·h·C texels, so every index is below `t.len()`.
+        // SAFETY: `tile` < K (pick_tile), x0, x1 ≤ w − 1 and y0, y1 ≤ h − 1 (masked),
+        // c < C, and `Bank::validate` checked that each level holds exactly K·w·h·C
+        // texels, so every index is below `t.len()`.
         let (a, b, d, e) = unsafe {
             (
                 *t.get_unchecked(r0 + x0 * C + c),
@@ -388,10 +447,9 @@ fn bilinear<const C: usize>(
                 *t.get_unchecked(r1 + x1 * C + c),
             )
         };
-        let top = a + (b - a) * tx;
-        let bottom = d + (e - d) * tx;
-        *slot += weight * (top + (bottom - top) * ty);
+        *slot = (a * corner[0] + b * corner[1]) + (d * corner[2] + e * corner[3]);
     }
+    acc
 }
 
 impl Surface for BlendSurface {
