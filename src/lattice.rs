@@ -80,6 +80,58 @@ impl Lattice {
         p.1.rem_euclid(self.c) == 0 && (p.0 - (p.1 / self.c) * self.b).rem_euclid(self.a) == 0
     }
 
+    /// The lattice seen at mip level `l` (ALGORITHMS.md §1): Λ_L = (Λ ∩ 2ᴸℤ²)/2ᴸ, on which
+    /// a Λ-periodic image box-filtered and sampled every 2ᴸ pixels is periodic.
+    pub fn at_level(&self, l: u32) -> Lattice {
+        let s = 1i64 << l;
+        // Λ ∩ sℤ²: points i·(A,0) + j·(B,C) with both coordinates ≡ 0 (mod s). The
+        // smallest positive row j·C ≡ 0 (mod s) for which some i solves i·A + j·B ≡ 0,
+        // then the smallest positive multiple of A ≡ 0 (mod s); i, j < s suffice.
+        let row = (1..=s)
+            .find_map(|j| {
+                ((j * self.c) % s == 0)
+                    .then(|| (0..s).find(|&i| (i * self.a + j * self.b) % s == 0))
+                    .flatten()
+                    .map(|i| (i * self.a + j * self.b, j * self.c))
+            })
+            .expect("j = s always works: s·(B, C) ∈ sℤ²");
+        let a = (1..=s)
+            .map(|k| k * self.a)
+            .find(|&v| v % s == 0)
+            .expect("s·A ≡ 0 (mod s)");
+        let (a, bx, c) = (a / s, row.0 / s, row.1 / s);
+        Lattice {
+            a,
+            b: bx.rem_euclid(a),
+            c,
+        }
+    }
+
+    /// A Lagrange–Gauss reduced basis (u, v): the two shortest independent lattice
+    /// vectors, |u| ≤ |v|, with det(u, v) > 0. Its parallelogram is the most compact
+    /// fundamental domain, the one a roller tile is carved from.
+    pub fn reduced_basis(&self) -> [(i64, i64); 2] {
+        let norm = |p: (i64, i64)| p.0 as i128 * p.0 as i128 + p.1 as i128 * p.1 as i128;
+        let dot = |p: (i64, i64), q: (i64, i64)| p.0 as i128 * q.0 as i128 + p.1 as i128 * q.1 as i128;
+        let (mut u, mut v) = ((self.a, 0), (self.b, self.c));
+        if norm(v) < norm(u) {
+            std::mem::swap(&mut u, &mut v);
+        }
+        loop {
+            // v ← v − round(⟨u,v⟩/|u|²)·u, then swap while v is shorter.
+            let k = (dot(u, v) as f64 / norm(u) as f64).round() as i64;
+            v = (v.0 - k * u.0, v.1 - k * u.1);
+            if norm(v) >= norm(u) {
+                break;
+            }
+            std::mem::swap(&mut u, &mut v);
+        }
+        if (u.0 as i128 * v.1 as i128 - u.1 as i128 * v.0 as i128) < 0 {
+            v = (-v.0, -v.1);
+        }
+        [u, v]
+    }
+
     /// Cell (i, j) of the integer point p and its position inside the fundamental
     /// domain [0, A) × [0, C): p = i·(A, 0) + j·(B, C) + local.
     pub fn reduce(&self, p: (i64, i64)) -> ((i64, i64), (i64, i64)) {
@@ -172,6 +224,47 @@ mod tests {
         assert!(!same_lattice((40, 0), (13, 29), (80, 0), (13, 29)));
         // Different lattice of the same area.
         assert!(!same_lattice((32, 0), (0, 24), (24, 0), (0, 32)));
+    }
+
+    /// Λ_L by brute force: the points of Λ inside a window that are multiples of 2ᴸ,
+    /// divided by 2ᴸ, must be exactly the points of `at_level(l)` there.
+    #[test]
+    fn mip_lattices_match_brute_force() {
+        for (u, v) in [((32, 0), (0, 24)), ((40, 0), (13, 29)), ((-17, 31), (29, 11)), ((7, 3), (2, 5))] {
+            let l0 = Lattice::from_basis(u, v).unwrap();
+            for l in 0..5u32 {
+                let s = 1i64 << l;
+                let ll = l0.at_level(l);
+                assert!(ll.a > 0 && ll.c > 0 && (0..ll.a).contains(&ll.b), "{ll:?}");
+                for y in -40..40i64 {
+                    for x in -80..80i64 {
+                        assert_eq!(
+                            l0.contains((x * s, y * s)),
+                            ll.contains((x, y)),
+                            "{u:?} {v:?} level {l} at ({x}, {y})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn reduced_bases_are_short_and_span_the_lattice() {
+        let l = Lattice::from_basis((-17, 31), (29, 11)).unwrap();
+        let [u, v] = l.reduced_basis();
+        assert!(same_lattice(u, v, (-17, 31), (29, 11)));
+        let n = |p: (i64, i64)| p.0 * p.0 + p.1 * p.1;
+        // The shortest vectors of this lattice are (29, 11) and (12, 42) − … ; check
+        // against brute force over all lattice points in a window.
+        let shortest = (-100..100i64)
+            .flat_map(|x| (-100..100i64).map(move |y| (x, y)))
+            .filter(|&p| p != (0, 0) && l.contains(p))
+            .map(n)
+            .min()
+            .unwrap();
+        assert_eq!(n(u), shortest);
+        assert!(u.0 * v.1 - u.1 * v.0 > 0);
     }
 
     proptest! {

@@ -7,5 +7,6 @@ pub mod missing;
 pub mod periodic;
 pub mod periodicity;
 pub mod resample;
+pub mod roller;
 pub mod rpn;
 pub mod taper;

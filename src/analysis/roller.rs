@@ -1,0 +1,593 @@
+//! The generalized roller (seed 003): double toroidal tiles cut from an exemplar on any
+//! integer lattice, and several tiles with identical borders.
+//!
+//! The tile is carved from the lattice's reduced rhomboid R = o + [0,1)·u + [0,1)·v,
+//! which holds exactly one pixel of every coset of ℤ²/Λ. Two minimum-error cuts make it
+//! wrap (ALGORITHMS.md §2, generalised to oblique lattices):
+//!
+//! 1. across the v-edge (the u period): near s = 0 a pixel q may take Y[q + u] instead of
+//!    Y[q]; the switch follows the cheapest path through ψᵘ = |Y[q] − Y[q+u]|² (seed 003,
+//!    eq. 1), giving V₁;
+//! 2. across the u-edge (the v period): near t = 0 the pixel may take V₁[q + v]; the path
+//!    through ψᵛ = |V₁[q] − V₁[q+v]|² (eq. 2) is cyclic, since the tile already wraps in u.
+//!
+//! Pixels are grouped into bins along and across each seam — exactly the pixel rows and
+//! columns for an axis-aligned lattice — and the recursion after eq. 2 runs over the bins
+//! ([`crate::analysis::cut`]). The start vertex r* (the rhomboid's origin) is the one
+//! whose two cuts cost least. The result is stored on the lattice's Hermite normal form
+//! rectangle (ALGORITHMS.md §1), so the runtime never sees the obliqueness.
+
+use crate::analysis::cut::min_cut_vertical;
+use crate::error::{Error, Result};
+use crate::lattice::Lattice;
+use crate::raster::Raster;
+
+/// Roller tiles on a lattice, level 0, in HNF storage.
+#[derive(Clone, Debug)]
+pub struct RollerTiles {
+    /// The tiling lattice (HNF: tiles are `a × c` texels, rows shift by `b`).
+    pub lattice: Lattice,
+    /// The reduced basis the rhomboids were cut along.
+    pub basis: [(i64, i64); 2],
+    /// Origin r* of the master rhomboid, then those of the other tiles, in exemplar pixels.
+    pub origins: Vec<(i64, i64)>,
+    /// Per tile, `a × c × channels` texels, row-major.
+    pub tiles: Vec<Vec<f32>>,
+    /// Mean error per bin along each cut: the u cut, the v cut, then for every further
+    /// tile its closed cut (mean of its four sides).
+    pub seam_costs: Vec<f64>,
+    /// Overlap (and border band) width in pixels.
+    pub overlap: usize,
+}
+
+/// Exact lattice coordinates of a rhomboid: s·D and t·D of pixel q, with
+/// q − o = s·u + t·v and D = det(u, v) > 0.
+#[derive(Clone, Copy)]
+struct Frame {
+    u: (i64, i64),
+    v: (i64, i64),
+    d: i64,
+    /// |u| and |v| in pixels.
+    lu: f64,
+    lv: f64,
+}
+
+impl Frame {
+    fn new([u, v]: [(i64, i64); 2]) -> Frame {
+        let d = u.0 * v.1 - u.1 * v.0;
+        debug_assert!(d > 0);
+        let len = |p: (i64, i64)| ((p.0 * p.0 + p.1 * p.1) as f64).sqrt();
+        Frame {
+            u,
+            v,
+            d,
+            lu: len(u),
+            lv: len(v),
+        }
+    }
+    /// (s·D, t·D) of offset δ = q − o.
+    fn st(&self, dx: i64, dy: i64) -> (i64, i64) {
+        (dx * self.v.1 - dy * self.v.0, self.u.0 * dy - self.u.1 * dx)
+    }
+    /// The representative of offset δ's coset inside [0,1)² (offset from o).
+    fn rep(&self, dx: i64, dy: i64) -> (i64, i64) {
+        let (sd, td) = self.st(dx, dy);
+        let (fs, ft) = (sd.div_euclid(self.d), td.div_euclid(self.d));
+        (
+            dx - fs * self.u.0 - ft * self.v.0,
+            dy - fs * self.u.1 - ft * self.v.1,
+        )
+    }
+    /// Pixel offsets δ with s ∈ [s0, s1), t ∈ [t0, t1), as (δ, s, t).
+    fn pixels(&self, s: (f64, f64), t: (f64, f64)) -> Vec<((i64, i64), f64, f64)> {
+        let (x0, x1, y0, y1) = self.bbox(s, t);
+        let mut out = Vec::new();
+        let df = self.d as f64;
+        for dy in y0..=y1 {
+            for dx in x0..=x1 {
+                let (sd, td) = self.st(dx, dy);
+                let (ss, tt) = (sd as f64 / df, td as f64 / df);
+                // Exact at the rhomboid's own edges (0 and 1), where it matters.
+                let in_s = if s.0 == 0.0 { sd >= 0 } else { ss >= s.0 } && ss < s.1;
+                let in_t = if t.0 == 0.0 { td >= 0 } else { tt >= t.0 } && tt < t.1;
+                if in_s && in_t {
+                    out.push(((dx, dy), ss, tt));
+                }
+            }
+        }
+        out
+    }
+    /// Bounding box (x0, x1, y0, y1) of the parallelogram s ∈ [s0,s1], t ∈ [t0,t1].
+    fn bbox(&self, s: (f64, f64), t: (f64, f64)) -> (i64, i64, i64, i64) {
+        let corners = [(s.0, t.0), (s.1, t.0), (s.0, t.1), (s.1, t.1)].map(|(a, b)| {
+            (
+                a * self.u.0 as f64 + b * self.v.0 as f64,
+                a * self.u.1 as f64 + b * self.v.1 as f64,
+            )
+        });
+        let fold = |f: fn(f64, f64) -> f64, k: usize, init: f64| {
+            corners
+                .iter()
+                .fold(init, |m, c| f(m, if k == 0 { c.0 } else { c.1 }))
+        };
+        (
+            fold(f64::min, 0, f64::MAX).floor() as i64,
+            fold(f64::max, 0, f64::MIN).ceil() as i64,
+            fold(f64::min, 1, f64::MAX).floor() as i64,
+            fold(f64::max, 1, f64::MIN).ceil() as i64,
+        )
+    }
+}
+
+/// The exemplar as a function of integer pixel position (all channels).
+struct Image<'a> {
+    r: &'a Raster,
+}
+
+impl Image<'_> {
+    fn at(&self, x: i64, y: i64) -> &[f32] {
+        let c = self.r.channels;
+        let i = (y as usize * self.r.width + x as usize) * c;
+        &self.r.data[i..i + c]
+    }
+}
+
+fn sq_diff(a: &[f32], b: &[f32]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(&p, &q)| (p as f64 - q as f64).powi(2))
+        .sum()
+}
+
+/// Cheapest 8-connected path through a `width × height` error matrix whose first and
+/// last rows are at most one column apart (a closed loop). Returns the column per row.
+fn min_cut_cyclic(err: &[f64], width: usize, height: usize) -> Vec<usize> {
+    if width <= 1 || height <= 1 {
+        return vec![0; height];
+    }
+    let mut best: Option<(f64, Vec<usize>)> = None;
+    for start in 0..width {
+        // Force row 0 to `start` and the last row to its neighbourhood.
+        let mut e = err.to_vec();
+        for c in 0..width {
+            if c != start {
+                e[c] = f64::INFINITY;
+            }
+            if c.abs_diff(start) > 1 {
+                e[(height - 1) * width + c] = f64::INFINITY;
+            }
+        }
+        let path = min_cut_vertical(&e, width, height);
+        let cost: f64 = path.iter().enumerate().map(|(r, &c)| e[r * width + c]).sum();
+        if cost.is_finite() && best.as_ref().is_none_or(|(b, _)| cost < *b) {
+            best = Some((cost, path));
+        }
+    }
+    best.map(|(_, p)| p).unwrap_or_else(|| vec![0; height])
+}
+
+/// Bins `(row, col, ψ)` into a `cols × rows` matrix; returns it and the mean error per
+/// row of the cheapest path through it (the cut cost).
+fn binned(items: &[(usize, usize, f64)], rows: usize, cols: usize) -> Vec<f64> {
+    let mut m = vec![0.0; rows * cols];
+    for &(r, c, e) in items {
+        m[r.min(rows - 1) * cols + c.min(cols - 1)] += e;
+    }
+    m
+}
+
+fn path_cost(m: &[f64], cols: usize, path: &[usize]) -> f64 {
+    path.iter()
+        .enumerate()
+        .map(|(r, &c)| m[r * cols + c])
+        .sum::<f64>()
+        / path.len().max(1) as f64
+}
+
+/// Geometry of one bake: frame, overlap, the ε of each seam and the bin counts.
+struct Plan {
+    f: Frame,
+    ov: usize,
+    eu: f64,
+    ev: f64,
+    /// Bins along t (u seam) and along s (v seam).
+    nt: usize,
+    ns: usize,
+}
+
+impl Plan {
+    /// Across-seam bin of the u seam (pixels from the v-edge) and along-seam bin.
+    fn bins_u(&self, s: f64, t: f64) -> (usize, usize) {
+        let f = &self.f;
+        ((t * f.lv) as usize, (s * f.d as f64 / f.lv) as usize)
+    }
+    fn bins_v(&self, s: f64, t: f64) -> (usize, usize) {
+        let f = &self.f;
+        ((s * f.lu) as usize, (t * f.d as f64 / f.lu) as usize)
+    }
+    /// Extent needed from the origin: s ∈ [0, 1+εu], t ∈ [0, 1+εv].
+    fn extent(&self) -> (i64, i64, i64, i64) {
+        self.f.bbox((0.0, 1.0 + self.eu), (0.0, 1.0 + self.ev))
+    }
+}
+
+/// The two cuts at origin `o`: returns (cut_u, cut_v, cost_u, cost_v). With `exact` the
+/// v cut compares V₁ (after the u cut) and is cyclic; otherwise it compares the raw
+/// exemplar (a cheaper estimate for the r* search).
+fn cuts(
+    img: &Image,
+    p: &Plan,
+    o: (i64, i64),
+    exact: bool,
+) -> (Vec<usize>, Vec<usize>, f64, f64) {
+    let f = &p.f;
+    let at = |d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
+    // u seam: strip s ∈ [0, εu), t ∈ [0, 1 + εv).
+    let items: Vec<(usize, usize, f64)> = f
+        .pixels((0.0, p.eu), (0.0, 1.0 + p.ev))
+        .into_iter()
+        .map(|(d, s, t)| {
+            let (r, c) = p.bins_u(s, t);
+            (r, c, sq_diff(at(d), at((d.0 + f.u.0, d.1 + f.u.1))))
+        })
+        .collect();
+    let mu = binned(&items, p.nt, p.ov);
+    let cut_u = min_cut_vertical(&mu, p.ov, p.nt);
+    let cost_u = path_cost(&mu, p.ov, &cut_u);
+    let v1 = |d: (i64, i64), s: f64, t: f64| -> &[f32] {
+        let (r, c) = p.bins_u(s, t);
+        if exact && s < p.eu && c < cut_u[r.min(p.nt - 1)] {
+            at((d.0 + f.u.0, d.1 + f.u.1))
+        } else {
+            at(d)
+        }
+    };
+    // v seam: strip t ∈ [0, εv), s ∈ [0, 1).
+    let items: Vec<(usize, usize, f64)> = f
+        .pixels((0.0, 1.0), (0.0, p.ev))
+        .into_iter()
+        .map(|(d, s, t)| {
+            let (r, c) = p.bins_v(s, t);
+            let e = sq_diff(v1(d, s, t), v1((d.0 + f.v.0, d.1 + f.v.1), s, t + 1.0));
+            (r, c, e)
+        })
+        .collect();
+    let mv = binned(&items, p.ns, p.ov);
+    let cut_v = if exact {
+        min_cut_cyclic(&mv, p.ov, p.ns)
+    } else {
+        min_cut_vertical(&mv, p.ov, p.ns)
+    };
+    let cost_v = path_cost(&mv, p.ov, &cut_v);
+    (cut_u, cut_v, cost_u, cost_v)
+}
+
+/// Candidate origins in `[x0, x1] × [y0, y1]`, about `n` per axis.
+fn grid(x: (i64, i64), y: (i64, i64), n: i64) -> Vec<(i64, i64)> {
+    let step = |lo: i64, hi: i64| ((hi - lo) / n).max(1);
+    let (sx, sy) = (step(x.0, x.1), step(y.0, y.1));
+    let mut out = Vec::new();
+    let mut yy = y.0;
+    while yy <= y.1 {
+        let mut xx = x.0;
+        while xx <= x.1 {
+            out.push((xx, yy));
+            xx += sx;
+        }
+        yy += sy;
+    }
+    out
+}
+
+/// Range of origins o for which o + extent lies inside the exemplar, or an error that
+/// says how big the exemplar must be.
+fn origin_range(
+    img: &Image,
+    ext: (i64, i64, i64, i64),
+    what: &str,
+) -> Result<((i64, i64), (i64, i64))> {
+    let (w, h) = (img.r.width as i64, img.r.height as i64);
+    let x = (-ext.0, w - 1 - ext.1);
+    let y = (-ext.2, h - 1 - ext.3);
+    if x.0 > x.1 || y.0 > y.1 {
+        return Err(Error::TooSmall {
+            what: "exemplar".into(),
+            message: format!(
+                "{what} needs {}×{} pixels; the exemplar has {w}×{h} (give a smaller --tile or --lattice, or fewer --tiles)",
+                ext.1 - ext.0 + 1,
+                ext.3 - ext.2 + 1
+            ),
+        });
+    }
+    Ok((x, y))
+}
+
+/// Cuts `n_tiles` double toroidal tiles from `exemplar` on `lattice`, with an overlap
+/// (and border band) of `overlap` pixels (default: a sixth of the rhomboid's smaller
+/// width, at least 8 and at most a third of it).
+pub fn roller_tiles(
+    exemplar: &Raster,
+    lattice: Lattice,
+    n_tiles: usize,
+    overlap: Option<usize>,
+    progress: &mut dyn FnMut(&str),
+) -> Result<RollerTiles> {
+    if n_tiles == 0 {
+        return Err(Error::param("tiles", 0, "at least 1 tile"));
+    }
+    let img = Image { r: exemplar };
+    let basis = lattice.reduced_basis();
+    let f = Frame::new(basis);
+    // Widths of the rhomboid across its v-edges and across its u-edges, in pixels.
+    let (wu, wv) = (f.d as f64 / f.lv, f.d as f64 / f.lu);
+    let narrow = wu.min(wv);
+    let ov = overlap
+        .unwrap_or(((narrow / 6.0).round() as usize).max(8))
+        .min((narrow / 3.0).floor() as usize)
+        .max(1);
+    let plan = Plan {
+        f,
+        ov,
+        eu: ov as f64 / wu,
+        ev: ov as f64 / wv,
+        nt: ((1.0 + ov as f64 / wv) * f.lv).ceil() as usize + 1,
+        ns: f.lu.ceil() as usize + 1,
+    };
+    let (u, v) = (basis[0], basis[1]);
+    let what = format!(
+        "a tile on u = ({}, {}), v = ({}, {}) with a {ov} px overlap",
+        u.0, u.1, v.0, v.1
+    );
+    let (rx, ry) = origin_range(&img, plan.extent(), &what)?;
+
+    // r*: the origin whose two cuts cost least (coarse grid, raw ψᵛ).
+    let candidates = grid(rx, ry, 16);
+    progress(&format!(
+        "roller: lattice u = ({}, {}), v = ({}, {}); HNF tile {}×{} (row shift {}); overlap {ov} px; searching r* over {} origins",
+        u.0,
+        u.1,
+        v.0,
+        v.1,
+        lattice.a,
+        lattice.c,
+        lattice.b,
+        candidates.len()
+    ));
+    let o = candidates
+        .iter()
+        .map(|&o| {
+            let (_, _, cu, cv) = cuts(&img, &plan, o, false);
+            (o, cu + cv)
+        })
+        .fold(None, |best: Option<((i64, i64), f64)>, (o, c)| match best {
+            Some((_, b)) if b <= c => best,
+            _ => Some((o, c)),
+        })
+        .map(|(o, _)| o)
+        .expect("the origin range is not empty");
+    let (cut_u, cut_v, cost_u, cost_v) = cuts(&img, &plan, o, true);
+    progress(&format!(
+        "roller: r* = ({}, {}); cut costs {cost_u:.4e} (u), {cost_v:.4e} (v) per bin",
+        o.0, o.1
+    ));
+
+    // The master tile T₀ as a function of the offset δ ∈ R.
+    let at = |o: (i64, i64), d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
+    let v1 = |d: (i64, i64), s: f64, t: f64| -> &[f32] {
+        let (r, c) = plan.bins_u(s, t);
+        if s < plan.eu && c < cut_u[r.min(plan.nt - 1)] {
+            at(o, (d.0 + u.0, d.1 + u.1))
+        } else {
+            at(o, d)
+        }
+    };
+    let df = f.d as f64;
+    let master = |d: (i64, i64)| -> &[f32] {
+        let (sd, td) = f.st(d.0, d.1);
+        let (s, t) = (sd as f64 / df, td as f64 / df);
+        let (r, c) = plan.bins_v(s, t);
+        if t < plan.ev && c < cut_v[r.min(plan.ns - 1)] {
+            v1((d.0 + v.0, d.1 + v.1), s, t + 1.0)
+        } else {
+            v1(d, s, t)
+        }
+    };
+    let ch = exemplar.channels;
+    let (a, c) = (lattice.a as usize, lattice.c as usize);
+    let store = |value: &dyn Fn((i64, i64)) -> Vec<f32>| -> Vec<f32> {
+        let mut out = Vec::with_capacity(a * c * ch);
+        for y in 0..c as i64 {
+            for x in 0..a as i64 {
+                out.extend_from_slice(&value(f.rep(x, y)));
+            }
+        }
+        out
+    };
+    let mut tiles = vec![store(&|d| master(d).to_vec())];
+    let mut origins = vec![o];
+    let mut seam_costs = vec![cost_u, cost_v];
+
+    if n_tiles > 1 {
+        // Further tiles: rhomboids elsewhere whose border band best matches T₀'s, each
+        // joined to T₀'s band by a closed cut (four side paths), so every tile shares
+        // T₀'s outer border and any arrangement stays seamless.
+        let band = ov;
+        let (bu, bv) = (band as f64 / wu, band as f64 / wv);
+        let (kx, ky) = origin_range(&img, f.bbox((0.0, 1.0), (0.0, 1.0)), &what)?;
+        let ring: Vec<((i64, i64), f64, f64)> = f
+            .pixels((0.0, 1.0), (0.0, 1.0))
+            .into_iter()
+            .filter(|&(_, s, t)| s < bu || s >= 1.0 - bu || t < bv || t >= 1.0 - bv)
+            .collect();
+        let min_sep = (f.lu.min(f.lv) / 2.0).max(1.0);
+        let mut scored: Vec<((i64, i64), f64)> = grid(kx, ky, 24)
+            .into_iter()
+            .map(|ok| {
+                let e: f64 = ring.iter().map(|&(d, _, _)| sq_diff(master(d), at(ok, d))).sum();
+                (ok, e)
+            })
+            .collect();
+        scored.sort_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)));
+        for (ok, _) in scored {
+            if origins.len() == n_tiles {
+                break;
+            }
+            let far = origins.iter().all(|p| {
+                (((p.0 - ok.0).pow(2) + (p.1 - ok.1).pow(2)) as f64).sqrt() >= min_sep
+            });
+            if far {
+                origins.push(ok);
+            }
+        }
+        if origins.len() < n_tiles {
+            return Err(Error::TooSmall {
+                what: "exemplar".into(),
+                message: format!(
+                    "{n_tiles} tiles need {n_tiles} rhomboids at least {min_sep:.0} px apart; the exemplar holds {} (ask for fewer --tiles or a smaller --tile)",
+                    origins.len()
+                ),
+            });
+        }
+        for (k, &ok) in origins.iter().enumerate().skip(1) {
+            progress(&format!(
+                "roller: tile {} of {n_tiles} from ({}, {})",
+                k + 1,
+                ok.0,
+                ok.1
+            ));
+            // Side cuts: (distance-from-edge bin, along bin) per side; interior where
+            // every side's distance bin reaches its cut (≥ 1: the outermost bin is T₀).
+            let sides: [Box<dyn Fn(f64, f64) -> (usize, usize)>; 4] = [
+                Box::new(|s, t| ((t * f.lv) as usize, (s * wu) as usize)),
+                Box::new(|s, t| ((t * f.lv) as usize, ((1.0 - s) * wu) as usize)),
+                Box::new(|s, t| ((s * f.lu) as usize, (t * wv) as usize)),
+                Box::new(|s, t| ((s * f.lu) as usize, ((1.0 - t) * wv) as usize)),
+            ];
+            let along = [plan.nt, plan.nt, plan.ns, plan.ns];
+            let mut side_cuts = Vec::new();
+            let mut cost = 0.0;
+            for (side, &n) in sides.iter().zip(&along) {
+                let items: Vec<(usize, usize, f64)> = ring
+                    .iter()
+                    .filter_map(|&(d, s, t)| {
+                        let (r, c) = side(s, t);
+                        (c >= 1 && c < band)
+                            .then(|| (r, c - 1, sq_diff(master(d), at(ok, d))))
+                    })
+                    .collect();
+                let cols = band.saturating_sub(1).max(1);
+                let m = binned(&items, n, cols);
+                let path = min_cut_vertical(&m, cols, n);
+                cost += path_cost(&m, cols, &path) / 4.0;
+                side_cuts.push(path.into_iter().map(|p| p + 1).collect::<Vec<usize>>());
+            }
+            seam_costs.push(cost);
+            let interior = |s: f64, t: f64| {
+                sides.iter().zip(&side_cuts).zip(&along).all(|((side, cut), &n)| {
+                    let (r, c) = side(s, t);
+                    c >= cut[r.min(n - 1)]
+                })
+            };
+            tiles.push(store(&|d| {
+                let (sd, td) = f.st(d.0, d.1);
+                if interior(sd as f64 / df, td as f64 / df) {
+                    at(ok, d).to_vec()
+                } else {
+                    master(d).to_vec()
+                }
+            }));
+        }
+    }
+    Ok(RollerTiles {
+        lattice,
+        basis,
+        origins,
+        tiles,
+        seam_costs,
+        overlap: ov,
+    })
+}
+
+/// Mip level `l` (≥ 1) of Λ-periodic tiles from level `l − 1`: each texel of the level-l
+/// HNF rectangle is the mean of the 2×2 block of level-(l−1) texels it covers, each
+/// found through the level-(l−1) lattice (a toroidal box filter).
+pub fn mip_down(prev: &[Vec<f32>], lat_prev: Lattice, lat: Lattice, channels: usize) -> Vec<Vec<f32>> {
+    let (a, c) = (lat.a as usize, lat.c as usize);
+    prev.iter()
+        .map(|tile| {
+            let mut out = Vec::with_capacity(a * c * channels);
+            for y in 0..c as i64 {
+                for x in 0..a as i64 {
+                    let mut acc = [0.0f64; 4];
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (_, (lx, ly)) = lat_prev.reduce((2 * x + dx, 2 * y + dy));
+                        let i = (ly as usize * lat_prev.a as usize + lx as usize) * channels;
+                        for ch in 0..channels {
+                            acc[ch] += tile[i + ch] as f64;
+                        }
+                    }
+                    out.extend(acc[..channels].iter().map(|&s| (s / 4.0) as f32));
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A periodic pattern on lattice (u, v): a sum of cosines on the reciprocal lattice.
+    pub fn periodic(w: usize, h: usize, u: (i64, i64), v: (i64, i64)) -> Raster {
+        let d = (u.0 * v.1 - u.1 * v.0) as f64;
+        // Reciprocal vectors: ⟨u*, u⟩ = 1, ⟨u*, v⟩ = 0.
+        let us = (v.1 as f64 / d, -v.0 as f64 / d);
+        let vs = (-u.1 as f64 / d, u.0 as f64 / d);
+        let tau = std::f64::consts::TAU;
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                let p = x * us.0 + y * us.1;
+                let q = x * vs.0 + y * vs.1;
+                ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.3 * (tau * (p + 2.0 * q)).cos()) as f32
+            })
+            .collect();
+        Raster::from_vec(w, h, 1, data).unwrap()
+    }
+
+    /// On an exactly periodic exemplar with its true lattice, ψ ≡ 0 and the tile is the
+    /// period itself: every stored texel equals the exemplar at any congruent position.
+    #[test]
+    fn exact_period_is_extracted_exactly() {
+        for (u, v) in [((32, 0), (0, 24)), ((40, 0), (13, 29)), ((-17, 31), (29, 11))] {
+            let ex = periodic(200, 180, u, v);
+            let lat = Lattice::from_basis(u, v).unwrap();
+            let t = roller_tiles(&ex, lat, 1, None, &mut |_| {}).unwrap();
+            let f = Frame::new(t.basis);
+            let o = t.origins[0];
+            let anchor = (100, 90);
+            for (k, &val) in t.tiles[0].iter().enumerate() {
+                let (x, y) = ((k % lat.a as usize) as i64, (k / lat.a as usize) as i64);
+                // Another representative of the coset of o + (x, y), in another rhomboid.
+                let d = f.rep(o.0 + x - anchor.0, o.1 + y - anchor.1);
+                let expect = ex.get((anchor.0 + d.0) as usize, (anchor.1 + d.1) as usize, 0);
+                assert!((val - expect).abs() < 1e-5, "{u:?} {v:?} texel {k}: {val} vs {expect}");
+            }
+            assert!(t.seam_costs[0] < 1e-9 && t.seam_costs[1] < 1e-9, "{:?}", t.seam_costs);
+        }
+    }
+
+    #[test]
+    fn too_small_exemplar_says_what_it_needs() {
+        let ex = periodic(40, 40, (32, 0), (0, 24));
+        let e = roller_tiles(&ex, Lattice::rectangular(36, 36).unwrap(), 1, None, &mut |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("needs") && e.contains("40×40"), "{e}");
+        let e = roller_tiles(&ex, Lattice::rectangular(8, 8).unwrap(), 0, None, &mut |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("at least 1 tile"), "{e}");
+    }
+}
