@@ -18,12 +18,15 @@ use crate::analysis::gauss::{gaussianize, inverse_lut, lut_eval, quantile};
 use crate::analysis::level::level_plane;
 use crate::analysis::missing::fill_missing;
 use crate::analysis::periodic::periodic_smooth;
+use crate::analysis::periodicity::detect_lattice;
 use crate::analysis::resample::{DownsampleFilter, downsample};
+use crate::analysis::roller::{mip_down, required_size, roller_tiles};
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
 use crate::analysis::taper::hann_taper;
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::{Error, Result};
 use crate::io::ImageFile;
+use crate::lattice::Lattice;
 use crate::raster::Raster;
 
 /// Smallest exemplar side accepted, in pixels (after down-sampling).
@@ -75,6 +78,10 @@ pub struct Baker {
     triangle_edge: Option<f64>,
     spacing_um: Option<f64>,
     taper: Taper,
+    tiles: usize,
+    lattice: Option<[(i64, i64); 2]>,
+    tile: Option<[usize; 2]>,
+    overlap: Option<usize>,
 }
 
 /// Builder for [`Baker`]; every setter documents its default.
@@ -136,9 +143,63 @@ impl BakerBuilder {
         self.0.taper = taper;
         self
     }
+    /// Roller: number of tiles with identical borders (1 to 64). Default: 1.
+    pub fn tiles(mut self, n: usize) -> Self {
+        self.0.tiles = n;
+        self
+    }
+    /// Roller: the periodicity vectors u, v in pixels, overriding detection.
+    pub fn lattice(mut self, u: (i64, i64), v: (i64, i64)) -> Self {
+        self.0.lattice = Some([u, v]);
+        self
+    }
+    /// Roller: an axis-aligned tile of `w × h` pixels, overriding detection.
+    pub fn tile(mut self, w: usize, h: usize) -> Self {
+        self.0.tile = Some([w, h]);
+        self
+    }
+    /// Roller: overlap (cut band) width in pixels. Default: a sixth of the tile, ≥ 8.
+    pub fn overlap(mut self, px: usize) -> Self {
+        self.0.overlap = Some(px);
+        self
+    }
     /// Checks every parameter.
     pub fn build(self) -> Result<Baker> {
         let b = self.0;
+        if !(1..=64).contains(&b.tiles) {
+            return Err(Error::param("tiles", b.tiles, "1 to 64 tiles"));
+        }
+        if let Some([u, v]) = b.lattice {
+            let l = Lattice::from_basis(u, v)?;
+            if l.area() < 4 || l.area() > 1 << 24 {
+                return Err(Error::param(
+                    "lattice",
+                    format!("({},{});({},{})", u.0, u.1, v.0, v.1),
+                    "a cell of 4 to 2^24 pixels",
+                ));
+            }
+        }
+        if let Some([w, h]) = b.tile
+            && !(2..=4096).contains(&w.min(h))
+        {
+            return Err(Error::param(
+                "tile",
+                format!("{w}x{h}"),
+                "sides of 2 to 4096 pixels",
+            ));
+        }
+        if let Some([w, h]) = b.tile
+            && w.max(h) > 4096
+        {
+            return Err(Error::param(
+                "tile",
+                format!("{w}x{h}"),
+                "sides of 2 to 4096 pixels",
+            ));
+        }
+        if b.overlap == Some(0) {
+            return Err(Error::param("overlap", 0, "at least 1 pixel"));
+        }
         if let Some(p) = b.patch
             && (!p.is_power_of_two() || !(8..=4096).contains(&p))
         {
@@ -191,6 +252,10 @@ impl Baker {
             triangle_edge: None,
             spacing_um: None,
             taper: Taper::Hann,
+            tiles: 1,
+            lattice: None,
+            tile: None,
+            overlap: None,
         })
     }
 
@@ -251,6 +316,9 @@ impl Baker {
         source: &str,
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
+        if self.method == Method::Roller {
+            return self.bake_roller(image, source, progress);
+        }
         let (ex, spacing_um) = self.preprocess(image, source)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         let side = |n: usize| (1usize << n.ilog2()).min(DEFAULT_MAX_PATCH);
@@ -298,8 +366,9 @@ impl Baker {
                 })
                 .collect();
             let patch = match self.method {
-                Method::Rpn => random_phase_noise(&crops, pw, ph, &mut rng),
                 Method::Adsn => asymptotic_spot_noise(&crops, pw, ph, &mut rng),
+                // The roller returned at the top of `bake`.
+                Method::Rpn | Method::Roller => random_phase_noise(&crops, pw, ph, &mut rng),
             };
             let tile = &mut level0[k * pw * ph * c..(k + 1) * pw * ph * c];
             for (ch, plane) in patch.iter().enumerate() {
@@ -340,6 +409,7 @@ impl Baker {
             size: [pw, ph],
             mean: mean0,
             sigma: sigma0,
+            shift: None,
         }];
         // Coarser levels: 2×2 box filter of the Gaussian patches and of the heights; each
         // level's table maps its Gaussian values to the distribution of averaged heights
@@ -372,22 +442,11 @@ impl Baker {
                 size: [lw, lh],
                 mean,
                 sigma,
+                shift: None,
             });
         }
 
-        let quantile_levels = vec![0.0, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99, 1.0];
-        let exemplar = ExemplarInfo {
-            source: source.to_string(),
-            width: w,
-            height: h,
-            mean: (0..c).map(|ch| mean_of(&sorted[ch])).collect(),
-            std: (0..c).map(|ch| std_of(&sorted[ch])).collect(),
-            quantiles: sorted
-                .iter()
-                .map(|s| quantile_levels.iter().map(|&p| quantile(s, p)).collect())
-                .collect(),
-            quantile_levels,
-        };
+        let exemplar = exemplar_info(&ex, source);
         let sqrt3 = 3f64.sqrt();
         let header = BankHeader {
             rule: Rule::Blend,
@@ -408,6 +467,7 @@ impl Baker {
             lut_size: LUT_SIZE,
             lut_z_range: LUT_Z_RANGE,
             exemplar,
+            seam_costs: Vec::new(),
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
@@ -427,6 +487,179 @@ impl Baker {
         };
         bank.validate(source)?;
         Ok(bank)
+    }
+}
+
+impl Baker {
+    /// The roller (seed 003): lattice from `--lattice`, `--tile`, detection, or the
+    /// largest axis-aligned tile that leaves the overlap; then double toroidal tiles and
+    /// toroidal mips, into a toroidal bank. Heights are kept as measured (no T).
+    fn bake_roller(
+        &self,
+        image: &ImageFile,
+        source: &str,
+        report: &mut dyn FnMut(&str),
+    ) -> Result<Bank> {
+        // The analysis takes a second or two; its lines are held back until it succeeds,
+        // so a refused exemplar gets one error line, not a half-told story.
+        let mut lines: Vec<String> = Vec::new();
+        let bank = self.bake_roller_quiet(image, source, &mut |l| lines.push(l.to_string()))?;
+        for l in &lines {
+            report(l);
+        }
+        Ok(bank)
+    }
+
+    fn bake_roller_quiet(
+        &self,
+        image: &ImageFile,
+        source: &str,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Bank> {
+        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let (w, h, c) = (ex.width, ex.height, ex.channels);
+        progress(&format!(
+            "exemplar {w}×{h}×{c}; roller with {} tile(s)",
+            self.tiles
+        ));
+        let lattice = if let Some([u, v]) = self.lattice {
+            progress(&format!(
+                "lattice given: u = ({}, {}), v = ({}, {})",
+                u.0, u.1, v.0, v.1
+            ));
+            Lattice::from_basis(u, v)?
+        } else if let Some([tw, th]) = self.tile {
+            Lattice::rectangular(tw as i64, th as i64)?
+        } else if let Some(p) = detect_lattice(&ex) {
+            progress(&format!(
+                "periodicity detected: u = ({}, {}), v = ({}, {}), autocorrelation {:.2}",
+                p.u.0, p.u.1, p.v.0, p.v.1, p.strength
+            ));
+            Lattice::from_basis(p.u, p.v)?
+        } else {
+            // Stochastic: the largest tile that leaves the overlap (a sixth of the tile,
+            // at least 8 px) and, for several tiles, room for their rhomboids.
+            let per_axis = (self.tiles as f64).sqrt().ceil();
+            let side = |n: usize| {
+                let room = 1.0 + (per_axis - 1.0) / 2.0;
+                let t = ((n as f64 * 6.0 / 7.0).min(n as f64 - 8.0) / room).floor();
+                (t.max(2.0)) as i64
+            };
+            let (mut tw, mut th) = (side(w), side(h));
+            // Shrink until the tile plus its overlap fits (the estimate rounds).
+            while tw > 2 && th > 2 {
+                let (nw, nh) = required_size(Lattice::rectangular(tw, th)?, self.overlap);
+                if nw <= w && nh <= h {
+                    break;
+                }
+                tw -= (nw > w) as i64;
+                th -= (nh > h) as i64;
+            }
+            progress(&format!(
+                "no periodicity found: axis-aligned {tw}×{th} tiles"
+            ));
+            Lattice::rectangular(tw, th)?
+        };
+        let rt = roller_tiles(&ex, lattice, self.tiles, self.overlap, progress)?;
+        let mut levels = Vec::new();
+        let mut texels = Vec::new();
+        let mut tiles = rt.tiles.clone();
+        let [u, v] = rt.basis;
+        let longest = ((u.0 * u.0 + u.1 * u.1).max(v.0 * v.0 + v.1 * v.1) as f64).sqrt();
+        let mut l = 0u32;
+        loop {
+            let lat = lattice.at_level(l);
+            let flat: Vec<f32> = tiles.concat();
+            let (mean, sigma) = channel_stats(&flat, c);
+            levels.push(LevelInfo {
+                size: [lat.a as usize, lat.c as usize],
+                mean,
+                sigma,
+                shift: Some(lat.b as usize),
+            });
+            texels.push(flat);
+            l += 1;
+            if l >= 14 || (1u64 << l) as f64 > longest / 2.0 {
+                break;
+            }
+            tiles = mip_down(&tiles, lat, lattice.at_level(l), c);
+        }
+        progress(&format!(
+            "{} tile(s) of {}×{} texels (row shift {}), {} mip levels",
+            rt.tiles.len(),
+            lattice.a,
+            lattice.c,
+            lattice.b,
+            levels.len()
+        ));
+        let header = BankHeader {
+            rule: Rule::Toroidal,
+            method: Method::Roller,
+            channels: c,
+            tiles: rt.tiles.len(),
+            tile_size: [lattice.a as usize, lattice.c as usize],
+            lattice: [[u.0 as f64, u.1 as f64], [v.0 as f64, v.1 as f64]],
+            triangle_edge: 0.0,
+            levels,
+            spacing_um,
+            height_unit: if c == 1 && spacing_um.is_some() {
+                "um".into()
+            } else {
+                String::new()
+            },
+            seed: self.seed,
+            lut_size: 0,
+            lut_z_range: 0.0,
+            exemplar: exemplar_info(&ex, source),
+            bake: format!(
+                "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} level={:?} downsample={} filter={:?} fill_missing={}",
+                u.0,
+                u.1,
+                v.0,
+                v.1,
+                self.tiles,
+                rt.overlap,
+                rt.origins,
+                self.leveling,
+                self.downsample,
+                self.filter,
+                self.fill_missing
+            ),
+            seam_costs: rt.seam_costs,
+        };
+        let luts = vec![Vec::new(); texels.len()];
+        let bank = Bank {
+            header,
+            texels,
+            luts,
+        };
+        bank.validate("just baked")?;
+        Ok(bank)
+    }
+}
+
+/// Statistics of the preprocessed exemplar, kept in the bank.
+fn exemplar_info(ex: &Raster, source: &str) -> ExemplarInfo {
+    let c = ex.channels;
+    let sorted: Vec<Vec<f64>> = (0..c)
+        .map(|ch| {
+            let mut v = ex.channel_f64(ch);
+            v.sort_by(f64::total_cmp);
+            v
+        })
+        .collect();
+    let quantile_levels = vec![0.0, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99, 1.0];
+    ExemplarInfo {
+        source: source.to_string(),
+        width: ex.width,
+        height: ex.height,
+        mean: sorted.iter().map(|s| mean_of(s)).collect(),
+        std: sorted.iter().map(|s| std_of(s)).collect(),
+        quantiles: sorted
+            .iter()
+            .map(|s| quantile_levels.iter().map(|&p| quantile(s, p)).collect())
+            .collect(),
+        quantile_levels,
     }
 }
 

@@ -112,7 +112,8 @@ impl Lattice {
     /// fundamental domain, the one a roller tile is carved from.
     pub fn reduced_basis(&self) -> [(i64, i64); 2] {
         let norm = |p: (i64, i64)| p.0 as i128 * p.0 as i128 + p.1 as i128 * p.1 as i128;
-        let dot = |p: (i64, i64), q: (i64, i64)| p.0 as i128 * q.0 as i128 + p.1 as i128 * q.1 as i128;
+        let dot =
+            |p: (i64, i64), q: (i64, i64)| p.0 as i128 * q.0 as i128 + p.1 as i128 * q.1 as i128;
         let (mut u, mut v) = ((self.a, 0), (self.b, self.c));
         if norm(v) < norm(u) {
             std::mem::swap(&mut u, &mut v);
@@ -230,7 +231,12 @@ mod tests {
     /// divided by 2ᴸ, must be exactly the points of `at_level(l)` there.
     #[test]
     fn mip_lattices_match_brute_force() {
-        for (u, v) in [((32, 0), (0, 24)), ((40, 0), (13, 29)), ((-17, 31), (29, 11)), ((7, 3), (2, 5))] {
+        for (u, v) in [
+            ((32, 0), (0, 24)),
+            ((40, 0), (13, 29)),
+            ((-17, 31), (29, 11)),
+            ((7, 3), (2, 5)),
+        ] {
             let l0 = Lattice::from_basis(u, v).unwrap();
             for l in 0..5u32 {
                 let s = 1i64 << l;

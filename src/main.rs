@@ -12,12 +12,12 @@ use surftile::analysis::level::level_plane;
 use surftile::analysis::missing::fill_missing;
 use surftile::analysis::resample::DownsampleFilter;
 use surftile::bake::{Baker, Leveling, Taper};
-use surftile::bank::{Bank, Method};
+use surftile::bank::{Bank, Method, Rule};
 use surftile::demo::run_demo;
 use surftile::io::{ReadOptions, parse_shape, read_image};
 use surftile::render::{checked_size, render_to_file};
 use surftile::stats::compare;
-use surftile::stream::{BlendSurface, Region, Surface};
+use surftile::stream::{Region, Surface};
 use surftile::{Error, Result};
 
 /// Infinite, deterministic surfaces from a small measured exemplar.
@@ -73,6 +73,18 @@ enum Command {
         /// Shape of a raw f32 exemplar: WxH or WxHxC.
         #[arg(long)]
         raw_shape: Option<String>,
+        /// Roller: number of tiles with identical borders.
+        #[arg(long, default_value_t = 1)]
+        tiles: usize,
+        /// Roller: periodicity vectors "ux,uy;vx,vy" in pixels, instead of detection.
+        #[arg(long, allow_hyphen_values = true)]
+        lattice: Option<String>,
+        /// Roller: axis-aligned tile WxH in pixels, instead of detection.
+        #[arg(long)]
+        tile: Option<String>,
+        /// Roller: overlap (cut band) width in pixels; default: a sixth of the tile, ≥ 8.
+        #[arg(long)]
+        overlap: Option<usize>,
     },
     /// Render a region of the infinite surface to .png (16-bit), .tif (f32) or .npy (f32).
     Render {
@@ -257,10 +269,40 @@ fn check_output(path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn load_surface(bank: &Path, seed: u32) -> Result<(Bank, BlendSurface)> {
+fn load_surface(bank: &Path, seed: u32) -> Result<(Bank, Box<dyn Surface>)> {
     let bank = Bank::read(bank)?;
-    let surface = BlendSurface::new(&bank, seed)?;
+    let surface = surftile::stream::open(&bank, seed)?;
     Ok((bank, surface))
+}
+
+/// `--lattice "ux,uy;vx,vy"`: two integer vectors.
+fn parse_lattice(text: &str) -> Result<((i64, i64), (i64, i64))> {
+    let bad = || {
+        Error::param(
+            "lattice",
+            text,
+            "two integer vectors \"ux,uy;vx,vy\" in pixels, e.g. \"40,0;13,29\"",
+        )
+    };
+    let vector = |s: &str| -> Result<(i64, i64)> {
+        let (a, b) = s.split_once(',').ok_or_else(bad)?;
+        Ok((
+            a.trim().parse().map_err(|_| bad())?,
+            b.trim().parse().map_err(|_| bad())?,
+        ))
+    };
+    let (u, v) = text.split_once(';').ok_or_else(bad)?;
+    Ok((vector(u)?, vector(v)?))
+}
+
+/// `--tile WxH`.
+fn parse_tile(text: &str) -> Result<(usize, usize)> {
+    let bad = || Error::param("tile", text, "WxH in pixels, e.g. 128x96");
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok((
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    ))
 }
 
 fn run(command: Command) -> Result<()> {
@@ -280,6 +322,10 @@ fn run(command: Command) -> Result<()> {
             triangle_edge,
             taper,
             raw_shape,
+            tiles,
+            lattice,
+            tile,
+            overlap,
         } => {
             let filter = match downsample_filter {
                 FilterArg::Nearest => DownsampleFilter::Nearest,
@@ -292,7 +338,26 @@ fn run(command: Command) -> Result<()> {
                 .leveling(level)
                 .downsample(downsample, filter)
                 .fill_missing(fill_missing)
-                .taper(taper);
+                .taper(taper)
+                .tiles(tiles);
+            if method != Method::Roller && (lattice.is_some() || tile.is_some() || tiles != 1) {
+                return Err(Error::param(
+                    "method",
+                    method,
+                    "roller when --tiles, --lattice or --tile is given",
+                ));
+            }
+            if let Some(l) = lattice {
+                let (u, v) = parse_lattice(&l)?;
+                builder = builder.lattice(u, v);
+            }
+            if let Some(t) = tile {
+                let (w, h) = parse_tile(&t)?;
+                builder = builder.tile(w, h);
+            }
+            if let Some(o) = overlap {
+                builder = builder.overlap(o);
+            }
             if let Some(p) = patch {
                 builder = builder.patch(p);
             }
@@ -339,7 +404,7 @@ fn run(command: Command) -> Result<()> {
             let (bank, surface) = load_surface(&bank, seed)?;
             let start = Instant::now();
             render_to_file(
-                &surface,
+                surface.as_ref(),
                 &region,
                 &out,
                 shade,
@@ -372,10 +437,33 @@ fn run(command: Command) -> Result<()> {
             } else {
                 let h = &b.header;
                 println!("bank        {}", bank.display());
-                println!(
-                    "rule        {} (triangle edge {} px)",
-                    h.rule, h.triangle_edge
-                );
+                match h.rule {
+                    Rule::Blend => {
+                        println!("rule        blend (triangle edge {} px)", h.triangle_edge)
+                    }
+                    Rule::Toroidal => {
+                        let [u, v] = h.lattice;
+                        println!(
+                            "rule        toroidal on lattice u = ({}, {}), v = ({}, {}); HNF cell {}×{}, row shift {}",
+                            u[0],
+                            u[1],
+                            v[0],
+                            v[1],
+                            h.tile_size[0],
+                            h.tile_size[1],
+                            h.levels[0].shift.unwrap_or(0)
+                        );
+                        let mut costs = h.seam_costs.iter();
+                        if let (Some(cu), Some(cv)) = (costs.next(), costs.next()) {
+                            println!(
+                                "seam cost   u cut {cu:.4e}, v cut {cv:.4e} (mean squared error per bin)"
+                            );
+                        }
+                        for (k, c) in costs.enumerate() {
+                            println!("seam cost   tile {} border cut {c:.4e}", k + 2);
+                        }
+                    }
+                }
                 println!("method      {}", h.method);
                 println!(
                     "tiles       {} of {}×{} px, {} channel(s), {} mip levels",

@@ -307,3 +307,32 @@ fn demo_writes_the_gallery() {
     .unwrap();
     assert!(stats["w1"].as_f64().unwrap() < 0.05, "{stats}");
 }
+
+/// Issue 3's bad roller input: `--tiles 0`, a collinear `--lattice`, and a tile plus
+/// overlap larger than the exemplar each give one clear line and no bank.
+#[test]
+fn bad_roller_parameters_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = exemplar();
+    let bake = |extra: &[&str]| {
+        let mut args = vec!["bake", ex.as_str(), "--method", "roller", "--out", "r.bank"];
+        args.extend_from_slice(extra);
+        surftile(dir.path(), &args)
+    };
+    let r = bake(&["--tiles", "0"]);
+    assert_clean_failure(dir.path(), &r, "1 to 64 tiles", "r.bank");
+    let r = bake(&["--lattice", "4,6;-2,-3"]);
+    assert_clean_failure(dir.path(), &r, "not collinear", "r.bank");
+    let r = bake(&["--lattice", "4,6"]);
+    assert_clean_failure(dir.path(), &r, "ux,uy;vx,vy", "r.bank");
+    let r = bake(&["--tile", "500x500"]);
+    assert_clean_failure(dir.path(), &r, "needs", "r.bank");
+    let r = bake(&["--tile", "200x200", "--tiles", "20"]);
+    assert_clean_failure(dir.path(), &r, "20 tiles", "r.bank");
+    // The flags belong to the roller only.
+    let r = surftile(
+        dir.path(),
+        &["bake", ex.as_str(), "--tiles", "4", "--out", "r.bank"],
+    );
+    assert_clean_failure(dir.path(), &r, "roller", "r.bank");
+}

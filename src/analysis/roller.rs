@@ -158,7 +158,11 @@ fn min_cut_cyclic(err: &[f64], width: usize, height: usize) -> Vec<usize> {
             }
         }
         let path = min_cut_vertical(&e, width, height);
-        let cost: f64 = path.iter().enumerate().map(|(r, &c)| e[r * width + c]).sum();
+        let cost: f64 = path
+            .iter()
+            .enumerate()
+            .map(|(r, &c)| e[r * width + c])
+            .sum();
         if cost.is_finite() && best.as_ref().is_none_or(|(b, _)| cost < *b) {
             best = Some((cost, path));
         }
@@ -184,6 +188,17 @@ fn path_cost(m: &[f64], cols: usize, path: &[usize]) -> f64 {
         / path.len().max(1) as f64
 }
 
+/// Bin index of a position measured in pixels: the floor, forgiving the rounding of
+/// s = (s·D)/D (without it, x = 11 comes out as 10.999… on an axis-aligned lattice and
+/// bin 11 stays empty, which the cut then follows for free).
+fn bin(pixels: f64) -> usize {
+    (pixels + 1e-7).max(0.0) as usize
+}
+
+/// (along-seam bin, distance-from-edge bin) of a pixel at lattice coordinates (s, t),
+/// for one side of a tile's border band.
+type SideBins<'a> = dyn Fn(f64, f64) -> (usize, usize) + 'a;
+
 /// Geometry of one bake: frame, overlap, the ε of each seam and the bin counts.
 struct Plan {
     f: Frame,
@@ -199,11 +214,11 @@ impl Plan {
     /// Across-seam bin of the u seam (pixels from the v-edge) and along-seam bin.
     fn bins_u(&self, s: f64, t: f64) -> (usize, usize) {
         let f = &self.f;
-        ((t * f.lv) as usize, (s * f.d as f64 / f.lv) as usize)
+        (bin(t * f.lv), bin(s * f.d as f64 / f.lv))
     }
     fn bins_v(&self, s: f64, t: f64) -> (usize, usize) {
         let f = &self.f;
-        ((s * f.lu) as usize, (t * f.d as f64 / f.lu) as usize)
+        (bin(s * f.lu), bin(t * f.d as f64 / f.lu))
     }
     /// Extent needed from the origin: s ∈ [0, 1+εu], t ∈ [0, 1+εv].
     fn extent(&self) -> (i64, i64, i64, i64) {
@@ -211,32 +226,73 @@ impl Plan {
     }
 }
 
+/// ψ between value(δ) and value(δ + e); with `smooth`, summed over the 3×3
+/// neighbourhood of δ (where `inside`).
+fn psi_at<'a>(
+    smooth: bool,
+    inside: &dyn Fn((i64, i64), (i64, i64)) -> bool,
+    d: (i64, i64),
+    e: (i64, i64),
+    value: &dyn Fn((i64, i64)) -> &'a [f32],
+) -> f64 {
+    if !smooth {
+        return sq_diff(value(d), value((d.0 + e.0, d.1 + e.1)));
+    }
+    let mut sum = 0.0;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let q = (d.0 + dx, d.1 + dy);
+            if inside(q, e) {
+                sum += sq_diff(value(q), value((q.0 + e.0, q.1 + e.1)));
+            }
+        }
+    }
+    sum
+}
+
 /// The two cuts at origin `o`: returns (cut_u, cut_v, cost_u, cost_v). With `exact` the
 /// v cut compares V₁ (after the u cut) and is cyclic; otherwise it compares the raw
 /// exemplar (a cheaper estimate for the r* search).
-fn cuts(
-    img: &Image,
+fn cuts<'a>(
+    img: &'a Image,
     p: &Plan,
     o: (i64, i64),
     exact: bool,
 ) -> (Vec<usize>, Vec<usize>, f64, f64) {
     let f = &p.f;
+    let (w, h) = (img.r.width as i64, img.r.height as i64);
     let at = |d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
+    // In the exact pass ψ is summed over the 3×3 neighbourhood: a path through pixels
+    // that merely happen to be equal (quantised data has many) costs nothing in the
+    // seed's pointwise ψ, yet shows as a seam, since the gradients across it differ.
+    let inside = |d: (i64, i64), e: (i64, i64)| {
+        let (x, y) = (o.0 + d.0.min(d.0 + e.0), o.1 + d.1.min(d.1 + e.1));
+        let (x1, y1) = (o.0 + d.0.max(d.0 + e.0), o.1 + d.1.max(d.1 + e.1));
+        x >= 0 && y >= 0 && x1 < w && y1 < h
+    };
+    // ψ at pixel δ between value(δ) and value(δ + e). In the exact pass it is summed over
+    // the 3×3 neighbourhood: a path through pixels that merely happen to be equal
+    // (quantised data has many) costs nothing in the seed's pointwise ψ yet shows as a
+    // seam, because the gradients across it do not match.
+    let psi = |d, e, value: &dyn Fn((i64, i64)) -> &'a [f32]| psi_at(exact, &inside, d, e, value);
     // u seam: strip s ∈ [0, εu), t ∈ [0, 1 + εv).
     let items: Vec<(usize, usize, f64)> = f
         .pixels((0.0, p.eu), (0.0, 1.0 + p.ev))
         .into_iter()
         .map(|(d, s, t)| {
             let (r, c) = p.bins_u(s, t);
-            (r, c, sq_diff(at(d), at((d.0 + f.u.0, d.1 + f.u.1))))
+            (r, c, psi(d, f.u, &at))
         })
         .collect();
     let mu = binned(&items, p.nt, p.ov);
     let cut_u = min_cut_vertical(&mu, p.ov, p.nt);
     let cost_u = path_cost(&mu, p.ov, &cut_u);
-    let v1 = |d: (i64, i64), s: f64, t: f64| -> &[f32] {
+    let df = f.d as f64;
+    let v1 = |d: (i64, i64)| -> &[f32] {
+        let (sd, td) = f.st(d.0, d.1);
+        let (s, t) = (sd as f64 / df, td as f64 / df);
         let (r, c) = p.bins_u(s, t);
-        if exact && s < p.eu && c < cut_u[r.min(p.nt - 1)] {
+        if exact && (0.0..p.eu).contains(&s) && c < cut_u[r.min(p.nt - 1)] {
             at((d.0 + f.u.0, d.1 + f.u.1))
         } else {
             at(d)
@@ -248,8 +304,7 @@ fn cuts(
         .into_iter()
         .map(|(d, s, t)| {
             let (r, c) = p.bins_v(s, t);
-            let e = sq_diff(v1(d, s, t), v1((d.0 + f.v.0, d.1 + f.v.1), s, t + 1.0));
-            (r, c, e)
+            (r, c, psi(d, f.v, &v1))
         })
         .collect();
     let mv = binned(&items, p.ns, p.ov);
@@ -302,6 +357,27 @@ fn origin_range(
     Ok((x, y))
 }
 
+/// Overlap used for `lattice` when none is given: a sixth of the rhomboid's smaller
+/// width, at least 8 pixels, at most a third of it.
+fn overlap_for(f: &Frame, overlap: Option<usize>) -> usize {
+    let narrow = (f.d as f64 / f.lv).min(f.d as f64 / f.lu);
+    overlap
+        .unwrap_or(((narrow / 6.0).round() as usize).max(8))
+        .min((narrow / 3.0).floor() as usize)
+        .max(1)
+}
+
+/// Exemplar size (width, height) the master tile on `lattice` needs with its overlap.
+pub fn required_size(lattice: Lattice, overlap: Option<usize>) -> (usize, usize) {
+    let f = Frame::new(lattice.reduced_basis());
+    let ov = overlap_for(&f, overlap) as f64;
+    let (x0, x1, y0, y1) = f.bbox(
+        (0.0, 1.0 + ov * f.lv / f.d as f64),
+        (0.0, 1.0 + ov * f.lu / f.d as f64),
+    );
+    ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize)
+}
+
 /// Cuts `n_tiles` double toroidal tiles from `exemplar` on `lattice`, with an overlap
 /// (and border band) of `overlap` pixels (default: a sixth of the rhomboid's smaller
 /// width, at least 8 and at most a third of it).
@@ -320,11 +396,7 @@ pub fn roller_tiles(
     let f = Frame::new(basis);
     // Widths of the rhomboid across its v-edges and across its u-edges, in pixels.
     let (wu, wv) = (f.d as f64 / f.lv, f.d as f64 / f.lu);
-    let narrow = wu.min(wv);
-    let ov = overlap
-        .unwrap_or(((narrow / 6.0).round() as usize).max(8))
-        .min((narrow / 3.0).floor() as usize)
-        .max(1);
+    let ov = overlap_for(&f, overlap);
     let plan = Plan {
         f,
         ov,
@@ -423,7 +495,10 @@ pub fn roller_tiles(
         let mut scored: Vec<((i64, i64), f64)> = grid(kx, ky, 24)
             .into_iter()
             .map(|ok| {
-                let e: f64 = ring.iter().map(|&(d, _, _)| sq_diff(master(d), at(ok, d))).sum();
+                let e: f64 = ring
+                    .iter()
+                    .map(|&(d, _, _)| sq_diff(master(d), at(ok, d)))
+                    .sum();
                 (ok, e)
             })
             .collect();
@@ -432,9 +507,9 @@ pub fn roller_tiles(
             if origins.len() == n_tiles {
                 break;
             }
-            let far = origins.iter().all(|p| {
-                (((p.0 - ok.0).pow(2) + (p.1 - ok.1).pow(2)) as f64).sqrt() >= min_sep
-            });
+            let far = origins
+                .iter()
+                .all(|p| (((p.0 - ok.0).pow(2) + (p.1 - ok.1).pow(2)) as f64).sqrt() >= min_sep);
             if far {
                 origins.push(ok);
             }
@@ -457,11 +532,11 @@ pub fn roller_tiles(
             ));
             // Side cuts: (distance-from-edge bin, along bin) per side; interior where
             // every side's distance bin reaches its cut (≥ 1: the outermost bin is T₀).
-            let sides: [Box<dyn Fn(f64, f64) -> (usize, usize)>; 4] = [
-                Box::new(|s, t| ((t * f.lv) as usize, (s * wu) as usize)),
-                Box::new(|s, t| ((t * f.lv) as usize, ((1.0 - s) * wu) as usize)),
-                Box::new(|s, t| ((s * f.lu) as usize, (t * wv) as usize)),
-                Box::new(|s, t| ((s * f.lu) as usize, ((1.0 - t) * wv) as usize)),
+            let sides: [Box<SideBins>; 4] = [
+                Box::new(|s, t| (bin(t * f.lv), bin(s * wu))),
+                Box::new(|s, t| (bin(t * f.lv), bin((1.0 - s) * wu))),
+                Box::new(|s, t| (bin(s * f.lu), bin(t * wv))),
+                Box::new(|s, t| (bin(s * f.lu), bin((1.0 - t) * wv))),
             ];
             let along = [plan.nt, plan.nt, plan.ns, plan.ns];
             let mut side_cuts = Vec::new();
@@ -471,8 +546,7 @@ pub fn roller_tiles(
                     .iter()
                     .filter_map(|&(d, s, t)| {
                         let (r, c) = side(s, t);
-                        (c >= 1 && c < band)
-                            .then(|| (r, c - 1, sq_diff(master(d), at(ok, d))))
+                        (c >= 1 && c < band).then(|| (r, c - 1, sq_diff(master(d), at(ok, d))))
                     })
                     .collect();
                 let cols = band.saturating_sub(1).max(1);
@@ -483,10 +557,14 @@ pub fn roller_tiles(
             }
             seam_costs.push(cost);
             let interior = |s: f64, t: f64| {
-                sides.iter().zip(&side_cuts).zip(&along).all(|((side, cut), &n)| {
-                    let (r, c) = side(s, t);
-                    c >= cut[r.min(n - 1)]
-                })
+                sides
+                    .iter()
+                    .zip(&side_cuts)
+                    .zip(&along)
+                    .all(|((side, cut), &n)| {
+                        let (r, c) = side(s, t);
+                        c >= cut[r.min(n - 1)]
+                    })
             };
             tiles.push(store(&|d| {
                 let (sd, td) = f.st(d.0, d.1);
@@ -511,7 +589,12 @@ pub fn roller_tiles(
 /// Mip level `l` (≥ 1) of Λ-periodic tiles from level `l − 1`: each texel of the level-l
 /// HNF rectangle is the mean of the 2×2 block of level-(l−1) texels it covers, each
 /// found through the level-(l−1) lattice (a toroidal box filter).
-pub fn mip_down(prev: &[Vec<f32>], lat_prev: Lattice, lat: Lattice, channels: usize) -> Vec<Vec<f32>> {
+pub fn mip_down(
+    prev: &[Vec<f32>],
+    lat_prev: Lattice,
+    lat: Lattice,
+    channels: usize,
+) -> Vec<Vec<f32>> {
     let (a, c) = (lat.a as usize, lat.c as usize);
     prev.iter()
         .map(|tile| {
@@ -560,7 +643,11 @@ pub(crate) mod tests {
     /// period itself: every stored texel equals the exemplar at any congruent position.
     #[test]
     fn exact_period_is_extracted_exactly() {
-        for (u, v) in [((32, 0), (0, 24)), ((40, 0), (13, 29)), ((-17, 31), (29, 11))] {
+        for (u, v) in [
+            ((32, 0), (0, 24)),
+            ((40, 0), (13, 29)),
+            ((-17, 31), (29, 11)),
+        ] {
             let ex = periodic(200, 180, u, v);
             let lat = Lattice::from_basis(u, v).unwrap();
             let t = roller_tiles(&ex, lat, 1, None, &mut |_| {}).unwrap();
@@ -572,22 +659,41 @@ pub(crate) mod tests {
                 // Another representative of the coset of o + (x, y), in another rhomboid.
                 let d = f.rep(o.0 + x - anchor.0, o.1 + y - anchor.1);
                 let expect = ex.get((anchor.0 + d.0) as usize, (anchor.1 + d.1) as usize, 0);
-                assert!((val - expect).abs() < 1e-5, "{u:?} {v:?} texel {k}: {val} vs {expect}");
+                assert!(
+                    (val - expect).abs() < 1e-5,
+                    "{u:?} {v:?} texel {k}: {val} vs {expect}"
+                );
             }
-            assert!(t.seam_costs[0] < 1e-9 && t.seam_costs[1] < 1e-9, "{:?}", t.seam_costs);
+            assert!(
+                t.seam_costs[0] < 1e-9 && t.seam_costs[1] < 1e-9,
+                "{:?}",
+                t.seam_costs
+            );
         }
     }
 
     #[test]
     fn too_small_exemplar_says_what_it_needs() {
         let ex = periodic(40, 40, (32, 0), (0, 24));
-        let e = roller_tiles(&ex, Lattice::rectangular(36, 36).unwrap(), 1, None, &mut |_| {})
-            .unwrap_err()
-            .to_string();
+        let e = roller_tiles(
+            &ex,
+            Lattice::rectangular(36, 36).unwrap(),
+            1,
+            None,
+            &mut |_| {},
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("needs") && e.contains("40×40"), "{e}");
-        let e = roller_tiles(&ex, Lattice::rectangular(8, 8).unwrap(), 0, None, &mut |_| {})
-            .unwrap_err()
-            .to_string();
+        let e = roller_tiles(
+            &ex,
+            Lattice::rectangular(8, 8).unwrap(),
+            0,
+            None,
+            &mut |_| {},
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("at least 1 tile"), "{e}");
     }
 }

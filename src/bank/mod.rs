@@ -34,12 +34,16 @@ pub const VERSION: u32 = 1;
 pub enum Rule {
     /// Variance-preserving triangle-grid blending of periodic Gaussian patches.
     Blend,
+    /// Toroidal tiles with identical borders on a lattice (roller, seed 003): cell (i, j)
+    /// shows tile `hash(seed, i, j) mod K`, stored in Hermite normal form.
+    Toroidal,
 }
 
 impl std::fmt::Display for Rule {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             Rule::Blend => "blend",
+            Rule::Toroidal => "toroidal",
         })
     }
 }
@@ -52,6 +56,8 @@ pub enum Method {
     Rpn,
     /// Asymptotic discrete spot noise (seed 000 §3.1.1).
     Adsn,
+    /// Generalized roller: double toroidal tiles (seed 003).
+    Roller,
 }
 
 impl std::fmt::Display for Method {
@@ -59,6 +65,7 @@ impl std::fmt::Display for Method {
         f.write_str(match self {
             Method::Rpn => "rpn",
             Method::Adsn => "adsn",
+            Method::Roller => "roller",
         })
     }
 }
@@ -82,15 +89,19 @@ pub struct ExemplarInfo {
     pub quantiles: Vec<Vec<f64>>,
 }
 
-/// One mip level of a blend bank.
+/// One mip level of a bank.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LevelInfo {
     /// Tile size at this level, `[w, h]` texels; each texel covers 2^level pixels a side.
+    /// For the toroidal rule, the level lattice's HNF rectangle `[A, C]`.
     pub size: [usize; 2],
-    /// Mean of the Gaussian tiles per channel.
+    /// Mean of the tiles per channel (for the blend rule, of the Gaussian tiles).
     pub mean: Vec<f64>,
-    /// Standard deviation of the Gaussian tiles per channel.
+    /// Standard deviation of the tiles per channel.
     pub sigma: Vec<f64>,
+    /// Toroidal rule: the row shift B of the level lattice's HNF (A, 0), (B, C).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shift: Option<usize>,
 }
 
 /// The self-describing header of a bank file.
@@ -107,7 +118,8 @@ pub struct BankHeader {
     /// Level-0 tile size `[w, h]` in pixels (powers of two).
     pub tile_size: [usize; 2],
     /// Lattice basis `[[ux, uy], [vx, vy]]` in pixels: for the blend rule, the
-    /// triangle grid's edge vectors.
+    /// triangle grid's edge vectors; for the toroidal rule, the reduced periodicity
+    /// vectors u, v.
     pub lattice: [[f64; 2]; 2],
     /// Triangle edge length E in pixels (blend rule).
     pub triangle_edge: f64,
@@ -127,6 +139,10 @@ pub struct BankHeader {
     pub exemplar: ExemplarInfo,
     /// The bake parameters, as text.
     pub bake: String,
+    /// Toroidal rule: mean error per bin along each cut (u cut, v cut, then the closed
+    /// cut of each further tile).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub seam_costs: Vec<f64>,
 }
 
 /// A bank in memory: header, texels per level and T⁻¹ tables per level.
@@ -153,24 +169,55 @@ impl Bank {
             return bad(format!("{} tiles; expected 1 to 4096", h.tiles));
         }
         let [w, ht] = h.tile_size;
-        if !w.is_power_of_two() || !ht.is_power_of_two() || w < 4 || ht < 4 || w > 8192 || ht > 8192
-        {
-            return bad(format!(
-                "tile size {w}×{ht}; expected powers of two from 4 to 8192"
-            ));
-        }
-        if !(h.triangle_edge.is_finite() && h.triangle_edge >= 1.0) {
-            return bad(format!(
-                "triangle edge {}; expected ≥ 1 pixel",
-                h.triangle_edge
-            ));
-        }
+        let toroidal = h.rule == Rule::Toroidal;
+        let lattice = if toroidal {
+            if w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 26 {
+                return bad(format!(
+                    "tile size {w}×{ht}; expected a lattice cell of 1 to 2^26 pixels"
+                ));
+            }
+            let b = h.levels.first().and_then(|l| l.shift).unwrap_or(usize::MAX);
+            if b >= w {
+                return bad(format!("row shift {b}; expected 0 to {}", w - 1));
+            }
+            Some(crate::lattice::Lattice {
+                a: w as i64,
+                b: b as i64,
+                c: ht as i64,
+            })
+        } else {
+            if !w.is_power_of_two()
+                || !ht.is_power_of_two()
+                || w < 4
+                || ht < 4
+                || w > 8192
+                || ht > 8192
+            {
+                return bad(format!(
+                    "tile size {w}×{ht}; expected powers of two from 4 to 8192"
+                ));
+            }
+            if !(h.triangle_edge.is_finite() && h.triangle_edge >= 1.0) {
+                return bad(format!(
+                    "triangle edge {}; expected ≥ 1 pixel",
+                    h.triangle_edge
+                ));
+            }
+            None
+        };
         if h.levels.is_empty() || h.levels.len() > 14 {
             return bad(format!("{} mip levels; expected 1 to 14", h.levels.len()));
         }
-        if h.lut_size < 2
-            || h.lut_size > 1 << 20
-            || !(h.lut_z_range > 0.0 && h.lut_z_range.is_finite())
+        if toroidal && h.lut_size != 0 {
+            return bad(format!(
+                "T⁻¹ table of {} entries; the toroidal rule has none",
+                h.lut_size
+            ));
+        }
+        if !toroidal
+            && (h.lut_size < 2
+                || h.lut_size > 1 << 20
+                || !(h.lut_z_range > 0.0 && h.lut_z_range.is_finite()))
         {
             return bad(format!(
                 "T⁻¹ table of {} entries over ±{}",
@@ -186,7 +233,19 @@ impl Bank {
             return bad("level count differs between header and data".into());
         }
         for (l, info) in h.levels.iter().enumerate() {
-            let expected = [(w >> l).max(1), (ht >> l).max(1)];
+            let expected = match lattice {
+                Some(lat) => {
+                    let ll = lat.at_level(l as u32);
+                    if info.shift != Some(ll.b as usize) {
+                        return bad(format!(
+                            "level {l} row shift {:?}; expected {}",
+                            info.shift, ll.b
+                        ));
+                    }
+                    [ll.a as usize, ll.c as usize]
+                }
+                None => [(w >> l).max(1), (ht >> l).max(1)],
+            };
             if info.size != expected {
                 return bad(format!(
                     "level {l} is {:?}; expected {expected:?}",
@@ -216,7 +275,7 @@ impl Bank {
             if self.texels[l].iter().any(|v| !v.is_finite()) {
                 return bad(format!("level {l} has non-finite texels"));
             }
-            for table in self.luts[l].chunks_exact(h.lut_size) {
+            for table in self.luts[l].chunks_exact(h.lut_size.max(1)) {
                 if table.iter().any(|v| !v.is_finite()) || table.windows(2).any(|p| p[1] < p[0]) {
                     return bad(format!(
                         "level {l} T⁻¹ table is not finite and non-decreasing"
@@ -341,6 +400,7 @@ impl Bank {
             "tile_size": h.tile_size,
             "lattice": h.lattice,
             "triangle_edge": h.triangle_edge,
+            "seam_costs": h.seam_costs,
             "mip_levels": h.levels.len(),
             "spacing_um": h.spacing_um,
             "height_unit": h.height_unit,

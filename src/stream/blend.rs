@@ -11,40 +11,12 @@
 
 use std::ops::Range;
 
-use super::{MAX_COORDINATE, Region, Surface};
+use super::{Region, Surface, floor_split, in_range, mip_level};
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
 use crate::hash::{hash_vertex, pick_tile};
 
 const SQRT3: f64 = 1.732_050_807_568_877_2;
-
-/// ⌊x⌋ as an integer and x − ⌊x⌋, for finite x.
-///
-/// Equal to `(x.floor() as i64, x - x.floor())` wherever ⌊x⌋ fits in an i64 (beyond
-/// 2⁵³ every f64 is an integer and the fraction is 0 either way), but built from a
-/// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call.
-/// The correction is arithmetic, not a branch: for random coordinates its sign is a coin
-/// flip, and each mispredicted branch flushes the overlap between consecutive samples.
-///
-/// # Safety
-/// `x` must be finite with |x| < 2⁶³: the conversion skips the saturation and NaN
-/// handling that `as` adds (five instructions per call on the sample path). Callers reach
-/// it only with coordinates checked against [`MAX_COORDINATE`] by [`in_range`], scaled by
-/// at most 2/(√3·E) with E ≥ 1, or with offsets reduced into a tile.
-#[inline(always)]
-unsafe fn floor_split(x: f64) -> (i64, f64) {
-    debug_assert!(x.abs() < 9.2e18, "floor_split({x})");
-    // SAFETY: the caller guarantees x is finite and inside the i64 range.
-    let t = unsafe { x.to_int_unchecked::<i64>() };
-    let i = t.wrapping_sub((t as f64 > x) as i64);
-    (i, x - i as f64)
-}
-
-/// True when (x, y) is inside the surface's coordinate range (NaN is not).
-#[inline(always)]
-fn in_range(x: f64, y: f64) -> bool {
-    x.abs() < MAX_COORDINATE && y.abs() < MAX_COORDINATE
-}
 
 /// A surface sampled from a blend bank ([`Rule::Blend`]) with a placement seed.
 pub struct BlendSurface {
@@ -185,7 +157,7 @@ impl BlendSurface {
 
     /// The triangle that contains (x, y): skewed cell (i, j) and which half. Pixels with
     /// different ids lie in different triangles (used by seam scores). Points outside
-    /// the coordinate range (±[`MAX_COORDINATE`], NaN) share the id `(i64::MIN, i64::MIN,
+    /// the coordinate range (±[`MAX_COORDINATE`](super::MAX_COORDINATE), NaN) share the id `(i64::MIN, i64::MIN,
     /// false)`.
     pub fn triangle_id(&self, x: f64, y: f64) -> (i64, i64, bool) {
         if !in_range(x, y) {
@@ -247,23 +219,6 @@ impl BlendSurface {
             },
             ox: h[1] as i64 & self.offset_mask_x,
             oy: (h[1] >> 16) as i64 & self.offset_mask_y,
-        }
-    }
-
-    /// Level index and blend weight toward the next level for a footprint (trilinear
-    /// between the two levels that bracket log2(footprint)).
-    #[inline(always)]
-    fn level_of(&self, footprint: f64) -> (usize, f32) {
-        let top = self.levels.len() - 1;
-        if footprint.is_nan() || footprint <= 1.0 || top == 0 {
-            return (0, 0.0);
-        }
-        let lambda = footprint.log2().min(top as f64);
-        let l0 = lambda.floor() as usize;
-        if l0 >= top {
-            (top, 0.0)
-        } else {
-            (l0, (lambda - l0 as f64) as f32)
         }
     }
 
@@ -368,7 +323,7 @@ impl BlendSurface {
             out[..C].fill(f32::NAN);
             return;
         }
-        let (l0, t) = self.level_of(footprint);
+        let (l0, t) = mip_level(footprint, self.levels.len());
         let (i, j, lower, w) = self.triangle(x, y);
         let verts = self.vertices(i, j, lower);
         self.blend_levels::<C>(x, y, l0, t, &verts, &w, out);
@@ -400,7 +355,7 @@ impl BlendSurface {
     }
 
     fn fill_rows_c<const C: usize>(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
-        let (l0, t) = self.level_of(region.step);
+        let (l0, t) = mip_level(region.step, self.levels.len());
         let mut cache = VertexCache::default();
         for (r, row) in rows.enumerate() {
             let y = region.y_at(row);

@@ -9,12 +9,23 @@
 //!   NaN) samples are NaN, never a panic.
 
 mod blend;
+mod toroidal;
 
 use std::ops::Range;
 
 pub use blend::BlendSurface;
+pub use toroidal::ToroidalSurface;
 
+use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
+
+/// The surface a bank describes, by its placement rule, placed with `seed`.
+pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
+    Ok(match bank.header.rule {
+        Rule::Blend => Box::new(BlendSurface::new(bank, seed)?),
+        Rule::Toroidal => Box::new(ToroidalSurface::new(bank, seed)?),
+    })
+}
 
 /// Largest coordinate magnitude a surface samples: 2⁵² pixels (4.5·10¹⁵). Beyond it an
 /// f64 has no fractional part left, so neighbouring pixels could not be told apart;
@@ -136,6 +147,51 @@ impl Region {
     /// True when the region has no samples.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+}
+
+/// ⌊x⌋ as an integer and x − ⌊x⌋, for finite x.
+///
+/// Equal to `(x.floor() as i64, x - x.floor())` wherever ⌊x⌋ fits in an i64 (beyond
+/// 2⁵³ every f64 is an integer and the fraction is 0 either way), but built from a
+/// truncating conversion: on the baseline x86-64 target `f64::floor` is a libm call.
+/// The correction is arithmetic, not a branch: for random coordinates its sign is a coin
+/// flip, and each mispredicted branch flushes the overlap between consecutive samples.
+///
+/// # Safety
+/// `x` must be finite with |x| < 2⁶³: the conversion skips the saturation and NaN
+/// handling that `as` adds (five instructions per call on the sample path). Callers reach
+/// it only with coordinates checked against [`MAX_COORDINATE`] by [`in_range`], scaled by
+/// at most 2/(√3·E) with E ≥ 1, or with offsets reduced into a tile.
+#[inline(always)]
+pub(crate) unsafe fn floor_split(x: f64) -> (i64, f64) {
+    debug_assert!(x.abs() < 9.2e18, "floor_split({x})");
+    // SAFETY: the caller guarantees x is finite and inside the i64 range.
+    let t = unsafe { x.to_int_unchecked::<i64>() };
+    let i = t.wrapping_sub((t as f64 > x) as i64);
+    (i, x - i as f64)
+}
+
+/// True when (x, y) is inside the surface's coordinate range (NaN is not).
+#[inline(always)]
+pub(crate) fn in_range(x: f64, y: f64) -> bool {
+    x.abs() < MAX_COORDINATE && y.abs() < MAX_COORDINATE
+}
+
+/// Level index and blend weight toward the next level for a footprint, over `levels`
+/// mip levels (trilinear between the two levels that bracket log2(footprint)).
+#[inline(always)]
+pub(crate) fn mip_level(footprint: f64, levels: usize) -> (usize, f32) {
+    let top = levels - 1;
+    if footprint.is_nan() || footprint <= 1.0 || top == 0 {
+        return (0, 0.0);
+    }
+    let lambda = footprint.log2().min(top as f64);
+    let l0 = lambda.floor() as usize;
+    if l0 >= top {
+        (top, 0.0)
+    } else {
+        (l0, (lambda - l0 as f64) as f32)
     }
 }
 

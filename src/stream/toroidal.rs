@@ -1,0 +1,317 @@
+//! The toroidal placement rule (roller banks, seed 003; DESIGN.md "Runtime placement
+//! rules" 1): the plane is cut into the cells of a lattice in Hermite normal form —
+//! rectangles of A × C pixels whose rows shift by B — and cell (i, j) shows tile
+//! `hash(seed, i, j) mod K`. All tiles share their borders, so any arrangement is
+//! seamless, and an oblique lattice costs the same as a square one (ALGORITHMS.md §1).
+
+use std::ops::Range;
+
+use super::{Region, Surface, floor_split, in_range, mip_level};
+use crate::bank::{Bank, Rule};
+use crate::error::{Error, Result};
+use crate::hash::{hash_vertex, pick_tile};
+
+/// One mip level: the level lattice's HNF and the tiles stored on it.
+struct Level {
+    a: i64,
+    b: i64,
+    c: i64,
+    inv_a: f64,
+    inv_c: f64,
+    /// Largest |j| for which j·B fits comfortably in an i64.
+    j_safe: u64,
+    /// 2^−L and the level-L texel centre in level-0 pixels ((2^L − 1)/2).
+    scale: f64,
+    centre: f64,
+    tile_stride: usize,
+    texels: Vec<f32>,
+}
+
+/// ⌊v / d⌋ and v mod d for d > 0, from a floating-point estimate (an integer division
+/// costs more than the rest of a sample). The estimate is off by at most one for
+/// |v| < 2⁵³; the corrections are arithmetic; anything else takes the exact path.
+#[inline(always)]
+fn div_floor(v: i64, d: i64, inv_d: f64) -> (i64, i64) {
+    let mut q = (v as f64 * inv_d) as i64;
+    let mut r = v.wrapping_sub(q.wrapping_mul(d));
+    let neg = (r < 0) as i64;
+    q -= neg;
+    r += neg * d;
+    let over = (r >= d) as i64;
+    q += over;
+    r -= over * d;
+    if r < 0 || r >= d {
+        return (v.div_euclid(d), v.rem_euclid(d));
+    }
+    (q, r)
+}
+
+impl Level {
+    /// Cell (i, j) of integer texel (x, y) and its position (lx, ly) in the HNF tile.
+    #[inline(always)]
+    fn locate(&self, x: i64, y: i64) -> (i64, i64, i64, i64) {
+        let (j, ly) = div_floor(y, self.c, self.inv_c);
+        let xs = if j.unsigned_abs() <= self.j_safe {
+            x - j * self.b
+        } else {
+            // Far rows of a long, thin cell: j·B would overflow; the same cell exactly.
+            let xs = x as i128 - j as i128 * self.b as i128;
+            let i = xs.div_euclid(self.a as i128);
+            return (i as i64, j, (xs - i * self.a as i128) as i64, ly);
+        };
+        let (i, lx) = div_floor(xs, self.a, self.inv_a);
+        (i, j, lx, ly)
+    }
+}
+
+/// A surface sampled from a toroidal bank ([`Rule::Toroidal`]) with a placement seed.
+pub struct ToroidalSurface {
+    seed: u32,
+    channels: usize,
+    tiles: u32,
+    levels: Vec<Level>,
+}
+
+impl ToroidalSurface {
+    /// A surface over `bank` (which must use the toroidal rule), placed with `seed`.
+    pub fn new(bank: &Bank, seed: u32) -> Result<ToroidalSurface> {
+        let h = &bank.header;
+        if h.rule != Rule::Toroidal {
+            return Err(Error::Unsupported(format!(
+                "rule {} in a toroidal surface",
+                h.rule
+            )));
+        }
+        bank.validate("given to ToroidalSurface")?;
+        let levels = h
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(l, info)| {
+                let [a, c] = info.size;
+                let b = info.shift.unwrap_or(0) as i64;
+                Level {
+                    a: a as i64,
+                    b,
+                    c: c as i64,
+                    inv_a: 1.0 / a as f64,
+                    inv_c: 1.0 / c as f64,
+                    j_safe: (1u64 << 62) / (b.max(1) as u64),
+                    scale: 0.5f64.powi(l as i32),
+                    centre: ((1u64 << l) as f64 - 1.0) / 2.0,
+                    tile_stride: a * c * h.channels,
+                    texels: bank.texels[l].clone(),
+                }
+            })
+            .collect();
+        Ok(ToroidalSurface {
+            seed,
+            channels: h.channels,
+            tiles: h.tiles as u32,
+            levels,
+        })
+    }
+
+    /// The lattice cell (i, j) that pixel (x, y) lies in (for seam scores); points
+    /// outside the coordinate range share the id `(i64::MIN, i64::MIN, false)`.
+    pub fn cell_id(&self, x: f64, y: f64) -> (i64, i64, bool) {
+        if !in_range(x, y) {
+            return (i64::MIN, i64::MIN, false);
+        }
+        // SAFETY: in range, so |x|, |y| < 2⁵².
+        let ((xi, _), (yi, _)) = unsafe { (floor_split(x), floor_split(y)) };
+        let (i, j, _, _) = self.levels[0].locate(xi, yi);
+        (i, j, false)
+    }
+
+    /// Tile shown by cell (i, j).
+    #[inline(always)]
+    fn tile_of(&self, i: i64, j: i64) -> usize {
+        if self.tiles == 1 {
+            0
+        } else {
+            pick_tile(hash_vertex(self.seed, i, j)[0], self.tiles) as usize
+        }
+    }
+
+    /// Offset of texel (x, y) of level `lv` in its texel array.
+    #[inline(always)]
+    fn texel_at(&self, lv: &Level, x: i64, y: i64) -> usize {
+        let (i, j, lx, ly) = lv.locate(x, y);
+        self.tile_of(i, j) * lv.tile_stride + (ly * lv.a + lx) as usize * self.channels
+    }
+
+    /// Bilinear sample of level `l` at texel coordinates (px, py) (texel centres at
+    /// integers), added to `out` with weight `w`.
+    #[inline(always)]
+    fn bilinear<const C: usize>(&self, l: usize, px: f64, py: f64, w: f32, out: &mut [f32; C]) {
+        let lv = &self.levels[l];
+        // SAFETY: callers pass coordinates checked by in_range, scaled by 2^−L ≤ 1.
+        let ((xi, fx), (yi, fy)) = unsafe { (floor_split(px), floor_split(py)) };
+        let (fx, fy) = (fx as f32, fy as f32);
+        let (i, j, lx, ly) = lv.locate(xi, yi);
+        let t = &lv.texels;
+        let (p00, p10, p01, p11) = if lx + 1 < lv.a && ly + 1 < lv.c {
+            // All four corners in one cell (all but a border row and column).
+            let p = self.tile_of(i, j) * lv.tile_stride + (ly * lv.a + lx) as usize * C;
+            let row = lv.a as usize * C;
+            (p, p + C, p + row, p + row + C)
+        } else {
+            (
+                self.texel_at(lv, xi, yi),
+                self.texel_at(lv, xi + 1, yi),
+                self.texel_at(lv, xi, yi + 1),
+                self.texel_at(lv, xi + 1, yi + 1),
+            )
+        };
+        debug_assert!(p11.max(p10).max(p01).max(p00) + C <= t.len());
+        for (c, o) in out.iter_mut().enumerate() {
+            // SAFETY: tile < K (pick_tile), 0 ≤ lx < A and 0 ≤ ly < C (locate), c < C =
+            // channels, and Bank::validate checked K·A·C·channels texels per level.
+            let (a, b, d, e) = unsafe {
+                (
+                    *t.get_unchecked(p00 + c),
+                    *t.get_unchecked(p10 + c),
+                    *t.get_unchecked(p01 + c),
+                    *t.get_unchecked(p11 + c),
+                )
+            };
+            let top = a + (b - a) * fx;
+            let bottom = d + (e - d) * fx;
+            *o += w * (top + (bottom - top) * fy);
+        }
+    }
+
+    fn sample_c<const C: usize>(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        if !in_range(x, y) {
+            out[..C].fill(f32::NAN);
+            return;
+        }
+        let (l0, t) = mip_level(footprint, self.levels.len());
+        // −0.0 + v = v for every v, so a weight of 1 returns the texel's exact bits.
+        let mut acc = [-0.0f32; C];
+        let at = |l: usize| {
+            let lv = &self.levels[l];
+            ((x - lv.centre) * lv.scale, (y - lv.centre) * lv.scale)
+        };
+        let (px, py) = at(l0);
+        self.bilinear::<C>(l0, px, py, 1.0 - t, &mut acc);
+        if t > 0.0 {
+            let (px, py) = at(l0 + 1);
+            self.bilinear::<C>(l0 + 1, px, py, t, &mut acc);
+        }
+        out[..C].copy_from_slice(&acc);
+    }
+
+    /// Step-1 rows at integer coordinates: each row is a run of copies, one per cell.
+    fn copy_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let c = self.channels;
+        let lv = &self.levels[0];
+        let x0 = region.x_at(0) as i64;
+        for (r, row) in rows.enumerate() {
+            let y = region.y_at(row) as i64;
+            let line = &mut out[r * region.width * c..(r + 1) * region.width * c];
+            let (mut i, j, mut lx, ly) = lv.locate(x0, y);
+            let row_base = (ly * lv.a) as usize * c;
+            let mut done = 0;
+            while done < region.width {
+                let run = ((lv.a - lx) as usize).min(region.width - done);
+                let start = self.tile_of(i, j) * lv.tile_stride + row_base + lx as usize * c;
+                line[done * c..(done + run) * c]
+                    .copy_from_slice(&lv.texels[start..start + run * c]);
+                done += run;
+                i += 1;
+                lx = 0;
+            }
+        }
+    }
+}
+
+impl Surface for ToroidalSurface {
+    fn channels(&self) -> usize {
+        self.channels
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        match self.channels {
+            1 => self.sample_c::<1>(x, y, footprint, out),
+            2 => self.sample_c::<2>(x, y, footprint, out),
+            3 => self.sample_c::<3>(x, y, footprint, out),
+            _ => self.sample_c::<4>(x, y, footprint, out),
+        }
+    }
+
+    fn height(&self, x: f64, y: f64) -> f32 {
+        if self.channels != 1 || !in_range(x, y) {
+            let mut buf = [0.0f32; 4];
+            self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
+            return buf[0];
+        }
+        let mut acc = [-0.0f32; 1];
+        self.bilinear::<1>(0, x, y, 1.0, &mut acc);
+        acc[0]
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let (x0, y0) = (region.x_at(0), region.y_at(rows.start));
+        let (x1, y1) = (
+            region.x_at(region.width.saturating_sub(1)),
+            region.y_at(rows.end.saturating_sub(1)),
+        );
+        if region.step == 1.0
+            && x0.fract() == 0.0
+            && y0.fract() == 0.0
+            && in_range(x0, y0)
+            && in_range(x1, y1)
+        {
+            // Integer samples at full resolution are stored texels: copy them.
+            return self.copy_rows(region, rows, out);
+        }
+        let c = self.channels;
+        for (r, row) in rows.enumerate() {
+            let y = region.y_at(row);
+            for col in 0..region.width {
+                let at = (r * region.width + col) * c;
+                self.sample_footprint(region.x_at(col), y, region.step, &mut out[at..at + c]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn div_floor_matches_euclid_everywhere() {
+        let ds = [1i64, 3, 24, 29, 40, 1086, 65_536, 1 << 26];
+        let vs = [
+            0i64,
+            1,
+            -1,
+            23,
+            24,
+            -24,
+            -25,
+            1 << 40,
+            -(1 << 40) - 7,
+            (1 << 52) - 1,
+            -(1 << 52) + 1,
+            (1 << 53) + 5,
+            i64::MAX / 3,
+            -i64::MAX / 3,
+        ];
+        for &d in &ds {
+            for &v in &vs {
+                for dv in -3..=3 {
+                    let v = v.saturating_add(dv);
+                    assert_eq!(
+                        div_floor(v, d, 1.0 / d as f64),
+                        (v.div_euclid(d), v.rem_euclid(d)),
+                        "{v} / {d}"
+                    );
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! Issue 3: roller banks and the toroidal placement rule.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use surftile::Raster;
+use surftile::bake::Baker;
+use surftile::bank::{Bank, Method};
+use surftile::io::ImageFile;
+use surftile::stats::{height_stats, seam_score_by};
+use surftile::stream::{Region, Surface, ToroidalSurface};
+
+fn image(r: Raster) -> ImageFile {
+    ImageFile {
+        raster: r,
+        spacing_um: None,
+    }
+}
+
+/// A pattern on lattice (u, v) plus 10% white noise (a near-regular exemplar).
+fn near_regular(w: usize, h: usize, u: (i64, i64), v: (i64, i64), seed: u64) -> Raster {
+    let d = (u.0 * v.1 - u.1 * v.0) as f64;
+    let (us, vs) = (
+        (v.1 as f64 / d, -v.0 as f64 / d),
+        (-u.1 as f64 / d, u.0 as f64 / d),
+    );
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let tau = std::f64::consts::TAU;
+    let data = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let (p, q) = (x * us.0 + y * us.1, x * vs.0 + y * vs.1);
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let noise = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.35 * noise) as f32
+        })
+        .collect();
+    Raster::from_vec(w, h, 1, data).unwrap()
+}
+
+fn roller_bank(tiles: usize) -> &'static Bank {
+    static BANKS: OnceLock<[Bank; 2]> = OnceLock::new();
+    let banks = BANKS.get_or_init(|| {
+        let ex =
+            surftile::io::read_image(&common::repo("tiles/di-6.npy"), &Default::default()).unwrap();
+        let bake = |n| {
+            Baker::builder()
+                .method(Method::Roller)
+                .tiles(n)
+                .build()
+                .unwrap()
+                .bake(&ex, "di-6", &mut |_| {})
+                .unwrap()
+        };
+        [bake(1), bake(4)]
+    });
+    &banks[if tiles == 1 { 0 } else { 1 }]
+}
+
+fn render(s: &dyn Surface, x: f64, y: f64, n: usize) -> Raster {
+    let r = Region::new(x, y, n, n);
+    let mut v = vec![0.0f32; r.len()];
+    s.fill(&r, &mut v).unwrap();
+    Raster::from_vec(n, n, 1, v).unwrap()
+}
+
+/// Each tile reproduces itself exactly when wrapped on its lattice: with one tile the
+/// surface is Λ-periodic, bit for bit, on an oblique lattice too; at integer points it
+/// returns stored texels, and the fill (row copies) equals `height`.
+#[test]
+fn tiles_wrap_exactly_on_their_lattice() {
+    for (u, v) in [((32, 0), (0, 24)), ((40, 0), (13, 29))] {
+        let ex = near_regular(256, 256, u, v, 5);
+        let bank = Baker::builder()
+            .method(Method::Roller)
+            .lattice(u, v)
+            .build()
+            .unwrap()
+            .bake(&image(ex), "synthetic", &mut |_| {})
+            .unwrap();
+        let s = ToroidalSurface::new(&bank, 3).unwrap();
+        for k in 0..200i64 {
+            let (x, y) = (
+                (k * 37 % 301 - 150) as f64 + 0.25,
+                (k * 53 % 211 - 100) as f64 - 0.5,
+            );
+            let h = s.height(x, y);
+            for (m, n) in [(1i64, 0i64), (0, 1), (-3, 2), (1000, -777)] {
+                let (dx, dy) = (m * u.0 + n * v.0, m * u.1 + n * v.1);
+                assert_eq!(
+                    h.to_bits(),
+                    s.height(x + dx as f64, y + dy as f64).to_bits(),
+                    "{u:?} {v:?} at ({x}, {y}) + {m}u + {n}v"
+                );
+            }
+        }
+        let (a, c) = (bank.header.tile_size[0], bank.header.tile_size[1]);
+        let r = render(&s, 0.0, 0.0, 64);
+        for y in 0..64 {
+            for x in 0..64 {
+                assert_eq!(
+                    r.get(x, y, 0).to_bits(),
+                    s.height(x as f64, y as f64).to_bits()
+                );
+            }
+        }
+        // Cell (0, 0) at integer points is tile 0's texels (one tile: no choice).
+        for y in 0..c.min(64) {
+            for x in 0..a.min(64) {
+                assert_eq!(r.get(x, y, 0), bank.texels[0][y * a + x]);
+            }
+        }
+    }
+}
+
+/// Seamless: a 2048² render of the stochastic di-6 roller bank has a seam score (mean
+/// squared gradient across lattice-cell borders over that inside) within [0.9, 1.15],
+/// for 1 tile and for 4.
+///
+/// NOT MET YET (issue 3 stays open): measured 1.376 with 1 tile and 1.173 with 4. The
+/// cuts minimise value differences, not gradients, and the u cut's ends at t = 0 and
+/// t = 1 need not meet where the v cut keeps the original rows. Run with `--ignored`.
+#[test]
+#[ignore = "acceptance not met yet: seam score 1.376 (1 tile), 1.173 (4 tiles) vs ≤ 1.15"]
+fn roller_render_is_seamless_at_lattice_cells() {
+    let mut scores = Vec::new();
+    for tiles in [1, 4] {
+        let s = ToroidalSurface::new(roller_bank(tiles), 7).unwrap();
+        let r = render(&s, -1000.0, 3000.0, 2048);
+        let score = seam_score_by(&r, |x, y| s.cell_id(x as f64 - 1000.0, y as f64 + 3000.0));
+        eprintln!("tiles {tiles}: seam score {score:.3}");
+        scores.push(score);
+    }
+    for (tiles, score) in [1, 4].iter().zip(scores) {
+        assert!(
+            (0.9..=1.15).contains(&score),
+            "tiles {tiles}: seam score {score}"
+        );
+    }
+}
+
+/// Variety: with 4 tiles the largest autocorrelation beyond the correlation length (the
+/// repetition score) is lower than with 1 tile, whose surface repeats exactly.
+#[test]
+fn four_tiles_repeat_less_than_one() {
+    let rep = |tiles| {
+        let s = ToroidalSurface::new(roller_bank(tiles), 7).unwrap();
+        height_stats(&render(&s, 0.0, 0.0, 1024)).repetition
+    };
+    let (one, four) = (rep(1), rep(4));
+    eprintln!("repetition score: 1 tile {one:.3}, 4 tiles {four:.3}");
+    assert!(four < one, "4 tiles {four} vs 1 tile {one}");
+}
+
+/// Splits and thread counts give the same bits, at fractional offsets and zoomed out.
+#[test]
+fn toroidal_fills_are_split_invariant() {
+    let s = ToroidalSurface::new(roller_bank(4), 11).unwrap();
+    for step in [1.0, 0.75, 3.0] {
+        let whole = Region::new(-12345.5, 67890.25, 300, 200).with_step(step);
+        let mut a = vec![0.0f32; whole.len()];
+        surftile::stream::fill_parallel(&s, &whole, &mut a, 1).unwrap();
+        let mut b = vec![0.0f32; whole.len()];
+        for (c0, r0, w, h) in [
+            (150, 100, 150, 100),
+            (0, 0, 150, 100),
+            (150, 0, 150, 100),
+            (0, 100, 150, 100),
+        ] {
+            let sub = whole.sub(c0, r0, w, h).unwrap();
+            let mut part = vec![0.0f32; sub.len()];
+            surftile::stream::fill_parallel(&s, &sub, &mut part, 2).unwrap();
+            for row in 0..h {
+                b[(r0 + row) * 300 + c0..(r0 + row) * 300 + c0 + w]
+                    .copy_from_slice(&part[row * w..(row + 1) * w]);
+            }
+        }
+        assert!(
+            a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()),
+            "step {step}"
+        );
+        assert!(a.iter().all(|v| v.is_finite()));
+    }
+}
