@@ -261,8 +261,8 @@ mod tests {
         let [u, v] = l.reduced_basis();
         assert!(same_lattice(u, v, (-17, 31), (29, 11)));
         let n = |p: (i64, i64)| p.0 * p.0 + p.1 * p.1;
-        // The shortest vectors of this lattice are (29, 11) and (12, 42) − … ; check
-        // against brute force over all lattice points in a window.
+        // u must be as short as the shortest non-zero lattice vector, found by brute
+        // force over a window.
         let shortest = (-100..100i64)
             .flat_map(|x| (-100..100i64).map(move |y| (x, y)))
             .filter(|&p| p != (0, 0) && l.contains(p))

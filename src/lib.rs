@@ -19,9 +19,10 @@
 //! ```
 //!
 //! Modules: [`io`] reads exemplars and writes outputs; [`analysis`] holds the offline
-//! stages (levelling, missing points, periodic + smooth, Gaussianisation, RPN/ADSN);
-//! [`bake`] runs them into a [`bank::Bank`]; [`stream`] is the runtime ([`stream::Surface`],
-//! [`stream::Region`], the blend rule); [`stats`] computes the quality figures; [`shade`]
+//! stages (levelling, missing points, periodic + smooth, Gaussianisation, RPN/ADSN,
+//! periodicity detection, roller cuts); [`bake`] runs them into a [`bank::Bank`];
+//! [`lattice`] holds integer lattices in Hermite normal form; [`stream`] is the runtime
+//! ([`stream::Surface`], [`stream::Region`], the blend and toroidal rules, [`stream::open`]); [`stats`] computes the quality figures; [`shade`]
 //! and [`render`] make pictures; [`demo`] is `surftile demo`.
 
 pub mod analysis;

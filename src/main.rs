@@ -340,11 +340,13 @@ fn run(command: Command) -> Result<()> {
                 .fill_missing(fill_missing)
                 .taper(taper)
                 .tiles(tiles);
-            if method != Method::Roller && (lattice.is_some() || tile.is_some() || tiles != 1) {
+            if method != Method::Roller
+                && (lattice.is_some() || tile.is_some() || overlap.is_some() || tiles != 1)
+            {
                 return Err(Error::param(
                     "method",
                     method,
-                    "roller when --tiles, --lattice or --tile is given",
+                    "roller when --tiles, --lattice, --tile or --overlap is given",
                 ));
             }
             if let Some(l) = lattice {
