@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 
 /// Overlap error of seed 003, eq. (1), for an axis-aligned period u = (m, 0): over the
-/// strip of `overlap` columns, ψ[r][k] = Σ_c (Y[r][k] − Y[r][m + k])² summed over
+/// strip of `overlap` columns, ψ(r, k) = Σ_c (Y(r, k) − Y(r, m + k))² summed over
 /// channels. `plane` is row-major `width × height × channels`; needs m + overlap ≤ width.
 /// Returns a row-major `overlap × height` error matrix.
 pub fn overlap_error_horizontal(

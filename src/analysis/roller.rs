@@ -5,11 +5,11 @@
 //! which holds exactly one pixel of every coset of ℤ²/Λ. Two minimum-error cuts make it
 //! wrap (ALGORITHMS.md §2, generalised to oblique lattices):
 //!
-//! 1. across the v-edge (the u period): near s = 0 a pixel q may take Y[q + u] instead of
-//!    Y[q]; the switch follows the cheapest path through ψᵘ = |Y[q] − Y[q+u]|² (seed 003,
+//! 1. across the v-edge (the u period): near s = 0 a pixel q may take Y(q + u) instead of
+//!    Y(q); the switch follows the cheapest path through ψᵘ = |Y(q) − Y(q+u)|² (seed 003,
 //!    eq. 1), giving V₁;
-//! 2. across the u-edge (the v period): near t = 0 the pixel may take V₁[q + v]; the path
-//!    through ψᵛ = |V₁[q] − V₁[q+v]|² (eq. 2) is cyclic, since the tile already wraps in u.
+//! 2. across the u-edge (the v period): near t = 0 the pixel may take V₁(q + v); the path
+//!    through ψᵛ = |V₁(q) − V₁(q+v)|² (eq. 2) is cyclic, since the tile already wraps in u.
 //!
 //! Pixels are grouped into bins along and across each seam — exactly the pixel rows and
 //! columns for an axis-aligned lattice — and the recursion after eq. 2 runs over the bins
