@@ -180,16 +180,7 @@ impl BakerBuilder {
             }
         }
         if let Some([w, h]) = b.tile
-            && !(2..=4096).contains(&w.min(h))
-        {
-            return Err(Error::param(
-                "tile",
-                format!("{w}x{h}"),
-                "sides of 2 to 4096 pixels",
-            ));
-        }
-        if let Some([w, h]) = b.tile
-            && w.max(h) > 4096
+            && !((2..=4096).contains(&w) && (2..=4096).contains(&h))
         {
             return Err(Error::param(
                 "tile",

@@ -78,6 +78,11 @@ impl Frame {
             dy - fs * self.u.1 - ft * self.v.1,
         )
     }
+    /// (s, t) of offset δ.
+    fn st_unit(&self, d: (i64, i64)) -> (f64, f64) {
+        let (sd, td) = self.st(d.0, d.1);
+        (sd as f64 / self.d as f64, td as f64 / self.d as f64)
+    }
     /// Pixel offsets δ with s ∈ [s0, s1), t ∈ [t0, t1), as (δ, s, t).
     fn pixels(&self, s: (f64, f64), t: (f64, f64)) -> Vec<((i64, i64), f64, f64)> {
         let (x0, x1, y0, y1) = self.bbox(s, t);
@@ -220,6 +225,16 @@ impl Plan {
         let f = &self.f;
         (bin(s * f.lu), bin(t * f.d as f64 / f.lu))
     }
+    /// True where the u cut makes the pixel at (s, t) take its value from δ + u.
+    fn takes_u(&self, cut_u: &[usize], s: f64, t: f64) -> bool {
+        let (r, c) = self.bins_u(s, t);
+        (0.0..self.eu).contains(&s) && c < cut_u[r.min(self.nt - 1)]
+    }
+    /// True where the v cut makes the pixel at (s, t) take its value from δ + v.
+    fn takes_v(&self, cut_v: &[usize], s: f64, t: f64) -> bool {
+        let (r, c) = self.bins_v(s, t);
+        (0.0..self.ev).contains(&t) && c < cut_v[r.min(self.ns - 1)]
+    }
     /// Extent needed from the origin: s ∈ [0, 1+εu], t ∈ [0, 1+εv].
     fn extent(&self) -> (i64, i64, i64, i64) {
         self.f.bbox((0.0, 1.0 + self.eu), (0.0, 1.0 + self.ev))
@@ -287,12 +302,9 @@ fn cuts<'a>(
     let mu = binned(&items, p.nt, p.ov);
     let cut_u = min_cut_vertical(&mu, p.ov, p.nt);
     let cost_u = path_cost(&mu, p.ov, &cut_u);
-    let df = f.d as f64;
     let v1 = |d: (i64, i64)| -> &[f32] {
-        let (sd, td) = f.st(d.0, d.1);
-        let (s, t) = (sd as f64 / df, td as f64 / df);
-        let (r, c) = p.bins_u(s, t);
-        if exact && (0.0..p.eu).contains(&s) && c < cut_u[r.min(p.nt - 1)] {
+        let (s, t) = f.st_unit(d);
+        if exact && p.takes_u(&cut_u, s, t) {
             at((d.0 + f.u.0, d.1 + f.u.1))
         } else {
             at(d)
@@ -378,6 +390,23 @@ pub fn required_size(lattice: Lattice, overlap: Option<usize>) -> (usize, usize)
     ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize)
 }
 
+/// A tile in HNF storage: texel (x, y) of the `A × C` rectangle takes `value` at the
+/// representative in the rhomboid of its coset.
+fn store_hnf<'a>(
+    f: &Frame,
+    lattice: Lattice,
+    channels: usize,
+    value: &dyn Fn((i64, i64)) -> &'a [f32],
+) -> Vec<f32> {
+    let mut out = Vec::with_capacity((lattice.a * lattice.c) as usize * channels);
+    for y in 0..lattice.c {
+        for x in 0..lattice.a {
+            out.extend_from_slice(value(f.rep(x, y)));
+        }
+    }
+    out
+}
+
 /// Cuts `n_tiles` double toroidal tiles from `exemplar` on `lattice`, with an overlap
 /// (and border band) of `overlap` pixels (default: a sixth of the rhomboid's smaller
 /// width, at least 8 and at most a third of it).
@@ -446,36 +475,21 @@ pub fn roller_tiles(
     // The master tile T₀ as a function of the offset δ ∈ R.
     let at = |o: (i64, i64), d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
     let v1 = |d: (i64, i64), s: f64, t: f64| -> &[f32] {
-        let (r, c) = plan.bins_u(s, t);
-        if s < plan.eu && c < cut_u[r.min(plan.nt - 1)] {
+        if plan.takes_u(&cut_u, s, t) {
             at(o, (d.0 + u.0, d.1 + u.1))
         } else {
             at(o, d)
         }
     };
-    let df = f.d as f64;
     let master = |d: (i64, i64)| -> &[f32] {
-        let (sd, td) = f.st(d.0, d.1);
-        let (s, t) = (sd as f64 / df, td as f64 / df);
-        let (r, c) = plan.bins_v(s, t);
-        if t < plan.ev && c < cut_v[r.min(plan.ns - 1)] {
+        let (s, t) = f.st_unit(d);
+        if plan.takes_v(&cut_v, s, t) {
             v1((d.0 + v.0, d.1 + v.1), s, t + 1.0)
         } else {
             v1(d, s, t)
         }
     };
-    let ch = exemplar.channels;
-    let (a, c) = (lattice.a as usize, lattice.c as usize);
-    let store = |value: &dyn Fn((i64, i64)) -> Vec<f32>| -> Vec<f32> {
-        let mut out = Vec::with_capacity(a * c * ch);
-        for y in 0..c as i64 {
-            for x in 0..a as i64 {
-                out.extend_from_slice(&value(f.rep(x, y)));
-            }
-        }
-        out
-    };
-    let mut tiles = vec![store(&|d| master(d).to_vec())];
+    let mut tiles = vec![store_hnf(&f, lattice, exemplar.channels, &master)];
     let mut origins = vec![o];
     let mut seam_costs = vec![cost_u, cost_v];
 
@@ -566,13 +580,9 @@ pub fn roller_tiles(
                         c >= cut[r.min(n - 1)]
                     })
             };
-            tiles.push(store(&|d| {
-                let (sd, td) = f.st(d.0, d.1);
-                if interior(sd as f64 / df, td as f64 / df) {
-                    at(ok, d).to_vec()
-                } else {
-                    master(d).to_vec()
-                }
+            tiles.push(store_hnf(&f, lattice, exemplar.channels, &|d| {
+                let (s, t) = f.st_unit(d);
+                if interior(s, t) { at(ok, d) } else { master(d) }
             }));
         }
     }

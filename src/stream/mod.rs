@@ -222,19 +222,30 @@ pub trait Surface: Send + Sync {
     /// interleaved channels). The single-threaded kernel behind [`Surface::fill`];
     /// the default samples pixel by pixel with a footprint of `region.step`.
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
-        let c = self.channels();
-        for (r, row) in rows.enumerate() {
-            let y = region.y_at(row);
-            for col in 0..region.width {
-                let at = (r * region.width + col) * c;
-                self.sample_footprint(region.x_at(col), y, region.step, &mut out[at..at + c]);
-            }
-        }
+        fill_rows_by_sample(self, region, rows, out);
     }
 
     /// Fills `region` into `out` (row-major, interleaved channels) on all cores.
     fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
         fill_parallel(self, region, out, default_threads())
+    }
+}
+
+/// Rows `rows` of `region`, sample by sample with a footprint of `region.step`: the
+/// default [`Surface::fill_rows`], and the fallback of surfaces with faster special cases.
+pub fn fill_rows_by_sample<S: Surface + ?Sized>(
+    surface: &S,
+    region: &Region,
+    rows: Range<usize>,
+    out: &mut [f32],
+) {
+    let c = surface.channels();
+    for (r, row) in rows.enumerate() {
+        let y = region.y_at(row);
+        for col in 0..region.width {
+            let at = (r * region.width + col) * c;
+            surface.sample_footprint(region.x_at(col), y, region.step, &mut out[at..at + c]);
+        }
     }
 }
 

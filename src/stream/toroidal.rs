@@ -6,7 +6,7 @@
 
 use std::ops::Range;
 
-use super::{Region, Surface, floor_split, in_range, mip_level};
+use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
 use crate::hash::{hash_vertex, pick_tile};
@@ -267,14 +267,7 @@ impl Surface for ToroidalSurface {
             // Integer samples at full resolution are stored texels: copy them.
             return self.copy_rows(region, rows, out);
         }
-        let c = self.channels;
-        for (r, row) in rows.enumerate() {
-            let y = region.y_at(row);
-            for col in 0..region.width {
-                let at = (r * region.width + col) * c;
-                self.sample_footprint(region.x_at(col), y, region.step, &mut out[at..at + c]);
-            }
-        }
+        fill_rows_by_sample(self, region, rows, out);
     }
 }
 
