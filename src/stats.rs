@@ -399,6 +399,48 @@ pub fn seam_score_by(r: &Raster, cell_of: impl Fn(usize, usize) -> (i64, i64, bo
     (border / nb as f64) / (inside / ni as f64)
 }
 
+/// Seam score at known seam pairs: the mean squared height difference over the pairs
+/// `seam(x, y, d)` marks (d = 0: (x, y)–(x+1, y); d = 1: (x, y)–(x, y+1)) ÷ what the other
+/// pairs of the same direction give, weighted by the seam pairs of each direction (so an
+/// anisotropic map compares like with like). 1.0: the seams are as rough as anywhere
+/// else; below 1, smoother than the map (a blurred seam); above, a visible step. NaN when
+/// there are no seam pairs or nothing else to compare with.
+pub fn seam_score_at(r: &Raster, seam: impl Fn(usize, usize, usize) -> bool) -> f64 {
+    let (mut on, mut n_on, mut off, mut n_off) =
+        ([0.0f64; 2], [0usize; 2], [0.0f64; 2], [0usize; 2]);
+    for y in 0..r.height {
+        for x in 0..r.width {
+            let here = r.get(x, y, 0) as f64;
+            for (d, (nx, ny)) in [(x + 1, y), (x, y + 1)].into_iter().enumerate() {
+                if nx >= r.width || ny >= r.height {
+                    continue;
+                }
+                let g = (r.get(nx, ny, 0) as f64 - here).powi(2);
+                if seam(x, y, d) {
+                    on[d] += g;
+                    n_on[d] += 1;
+                } else {
+                    off[d] += g;
+                    n_off[d] += 1;
+                }
+            }
+        }
+    }
+    let mut expected = 0.0;
+    for d in 0..2 {
+        if n_on[d] > 0 {
+            if n_off[d] == 0 || off[d] == 0.0 {
+                return f64::NAN;
+            }
+            expected += n_on[d] as f64 * off[d] / n_off[d] as f64;
+        }
+    }
+    if expected == 0.0 {
+        return f64::NAN;
+    }
+    (on[0] + on[1]) / expected
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -476,5 +518,24 @@ mod tests {
             (x as f64 * 0.5).sin() + (y as f64 * 0.3).cos() + ((x / 16) % 2) as f64 * 3.0
         });
         assert!(seam_score(&seamed, 16) > 5.0);
+    }
+
+    /// At marked pairs: a step on the marked column is seen; marking plain pairs of an
+    /// anisotropic map gives 1 (each direction compared with itself), where pooling the
+    /// directions would not.
+    #[test]
+    fn seam_score_at_compares_each_direction_with_itself() {
+        // x gradients 4× the y gradients in energy.
+        let aniso = raster(64, 64, |x, y| {
+            ((x * 7 + y * 3) % 11) as f64 * 2.0 + (y % 3) as f64
+        });
+        let on_column = |x: usize, _: usize, d: usize| d == 0 && x == 20;
+        let plain = seam_score_at(&aniso, on_column);
+        assert!((plain - 1.0).abs() < 0.2, "plain column {plain}");
+        let stepped = raster(64, 64, |x, y| {
+            ((x * 7 + y * 3) % 11) as f64 * 2.0 + (y % 3) as f64 + if x > 20 { 40.0 } else { 0.0 }
+        });
+        assert!(seam_score_at(&stepped, on_column) > 5.0);
+        assert!(seam_score_at(&aniso, |_, _, _| false).is_nan());
     }
 }

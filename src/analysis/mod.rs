@@ -2,6 +2,7 @@
 
 pub mod cut;
 pub mod gauss;
+pub mod heal;
 pub mod level;
 pub mod missing;
 pub mod periodic;

@@ -18,6 +18,7 @@
 //! rectangle (ALGORITHMS.md §1), so the runtime never sees the obliqueness.
 
 use crate::analysis::cut::min_cut_vertical;
+use crate::analysis::heal::heal;
 use crate::error::{Error, Result};
 use crate::lattice::Lattice;
 use crate::raster::Raster;
@@ -33,6 +34,9 @@ pub struct RollerTiles {
     pub origins: Vec<(i64, i64)>,
     /// Per tile, `a × c × channels` texels, row-major.
     pub tiles: Vec<Vec<f32>>,
+    /// Per tile, the exemplar pixel (x, y) each texel was taken from, before healing:
+    /// neighbours whose sources are not neighbours in the exemplar lie on a seam.
+    pub sources: Vec<Vec<(i64, i64)>>,
     /// Mean error per bin along each cut: the u cut, the v cut, then for every further
     /// tile its closed cut (mean of its four sides).
     pub seam_costs: Vec<f64>,
@@ -390,21 +394,25 @@ pub fn required_size(lattice: Lattice, overlap: Option<usize>) -> (usize, usize)
     ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize)
 }
 
-/// A tile in HNF storage: texel (x, y) of the `A × C` rectangle takes `value` at the
-/// representative in the rhomboid of its coset.
-fn store_hnf<'a>(
+/// Sources of a tile in HNF storage: texel (x, y) of the `A × C` rectangle takes the
+/// exemplar pixel `src` gives for the representative in the rhomboid of its coset.
+fn sources_hnf(
     f: &Frame,
     lattice: Lattice,
-    channels: usize,
-    value: &dyn Fn((i64, i64)) -> &'a [f32],
-) -> Vec<f32> {
-    let mut out = Vec::with_capacity((lattice.a * lattice.c) as usize * channels);
-    for y in 0..lattice.c {
-        for x in 0..lattice.a {
-            out.extend_from_slice(value(f.rep(x, y)));
-        }
-    }
-    out
+    src: &dyn Fn((i64, i64)) -> (i64, i64),
+) -> Vec<(i64, i64)> {
+    (0..lattice.c)
+        .flat_map(|y| (0..lattice.a).map(move |x| (x, y)))
+        .map(|(x, y)| src(f.rep(x, y)))
+        .collect()
+}
+
+/// The texels at `sources`, all channels, row-major.
+fn gather(img: &Image, sources: &[(i64, i64)]) -> Vec<f32> {
+    sources
+        .iter()
+        .flat_map(|&(x, y)| img.at(x, y).iter().copied())
+        .collect()
 }
 
 /// Cuts `n_tiles` double toroidal tiles from `exemplar` on `lattice`, with an overlap
@@ -472,24 +480,33 @@ pub fn roller_tiles(
         o.0, o.1
     ));
 
-    // The master tile T₀ as a function of the offset δ ∈ R.
-    let at = |o: (i64, i64), d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
-    let v1 = |d: (i64, i64), s: f64, t: f64| -> &[f32] {
+    // The master tile T₀: the exemplar pixel each offset δ ∈ R takes.
+    let shift = |o: (i64, i64), d: (i64, i64)| (o.0 + d.0, o.1 + d.1);
+    let v1 = |d: (i64, i64), s: f64, t: f64| -> (i64, i64) {
         if plan.takes_u(&cut_u, s, t) {
-            at(o, (d.0 + u.0, d.1 + u.1))
+            shift(o, shift(d, u))
         } else {
-            at(o, d)
+            shift(o, d)
         }
     };
-    let master = |d: (i64, i64)| -> &[f32] {
+    let master_src = |d: (i64, i64)| -> (i64, i64) {
         let (s, t) = f.st_unit(d);
         if plan.takes_v(&cut_v, s, t) {
-            v1((d.0 + v.0, d.1 + v.1), s, t + 1.0)
+            v1(shift(d, v), s, t + 1.0)
         } else {
             v1(d, s, t)
         }
     };
-    let mut tiles = vec![store_hnf(&f, lattice, exemplar.channels, &master)];
+    let master = |d: (i64, i64)| -> &[f32] {
+        let p = master_src(d);
+        img.at(p.0, p.1)
+    };
+    let at = |o: (i64, i64), d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
+    let src0 = sources_hnf(&f, lattice, &master_src);
+    let mut tile0 = gather(&img, &src0);
+    let c0 = heal(&lattice, exemplar, &src0, &mut tile0, None);
+    let mut tiles = vec![tile0];
+    let mut sources = vec![src0];
     let mut origins = vec![o];
     let mut seam_costs = vec![cost_u, cost_v];
 
@@ -517,26 +534,36 @@ pub fn roller_tiles(
             })
             .collect();
         scored.sort_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)));
-        for (ok, _) in scored {
+        // Best-matching first, greedily, at least `sep` apart; where the greedy choice
+        // packs badly, the separation is relaxed (to half at most) before giving up.
+        for sep in [min_sep, 0.75 * min_sep, 0.5 * min_sep] {
+            origins.truncate(1);
+            for &(ok, _) in &scored {
+                if origins.len() == n_tiles {
+                    break;
+                }
+                let far = origins
+                    .iter()
+                    .all(|p| (((p.0 - ok.0).pow(2) + (p.1 - ok.1).pow(2)) as f64).sqrt() >= sep);
+                if far {
+                    origins.push(ok);
+                }
+            }
             if origins.len() == n_tiles {
                 break;
-            }
-            let far = origins
-                .iter()
-                .all(|p| (((p.0 - ok.0).pow(2) + (p.1 - ok.1).pow(2)) as f64).sqrt() >= min_sep);
-            if far {
-                origins.push(ok);
             }
         }
         if origins.len() < n_tiles {
             return Err(Error::TooSmall {
                 what: "exemplar".into(),
                 message: format!(
-                    "{n_tiles} tiles need {n_tiles} rhomboids at least {min_sep:.0} px apart; the exemplar holds {} (ask for fewer --tiles or a smaller --tile)",
+                    "{n_tiles} tiles need {n_tiles} rhomboids at least {:.0} px apart; the exemplar holds {} (ask for fewer --tiles or a smaller --tile)",
+                    min_sep / 2.0,
                     origins.len()
                 ),
             });
         }
+        let mut pending = Vec::new();
         for (k, &ok) in origins.iter().enumerate().skip(1) {
             progress(&format!(
                 "roller: tile {} of {n_tiles} from ({}, {})",
@@ -580,10 +607,44 @@ pub fn roller_tiles(
                         c >= cut[r.min(n - 1)]
                     })
             };
-            tiles.push(store_hnf(&f, lattice, exemplar.channels, &|d| {
+            let src = sources_hnf(&f, lattice, &|d| {
                 let (s, t) = f.st_unit(d);
-                if interior(s, t) { at(ok, d) } else { master(d) }
-            }));
+                if interior(s, t) {
+                    shift(ok, d)
+                } else {
+                    master_src(d)
+                }
+            });
+            let free: Vec<bool> = (0..lattice.c)
+                .flat_map(|y| (0..lattice.a).map(move |x| (x, y)))
+                .map(|(x, y)| {
+                    let (s, t) = f.st_unit(f.rep(x, y));
+                    interior(s, t)
+                })
+                .collect();
+            // T₀'s healed band everywhere outside the closed cut; the inside is healed
+            // with the band held fixed, so every tile keeps T₀'s border exactly.
+            let mut tile = gather(&img, &src);
+            tile.iter_mut()
+                .zip(&c0)
+                .for_each(|(t, c)| *t = (*t as f64 + c) as f32);
+            pending.push((src, free, tile));
+        }
+        // The interiors are healed independently: in parallel, each result its own.
+        std::thread::scope(|scope| {
+            let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let chunk = pending.len().div_ceil(workers).max(1);
+            for group in pending.chunks_mut(chunk) {
+                scope.spawn(move || {
+                    for (src, free, tile) in group {
+                        heal(&lattice, exemplar, src, tile, Some(free));
+                    }
+                });
+            }
+        });
+        for (src, _, tile) in pending {
+            tiles.push(tile);
+            sources.push(src);
         }
     }
     Ok(RollerTiles {
@@ -591,6 +652,7 @@ pub fn roller_tiles(
         basis,
         origins,
         tiles,
+        sources,
         seam_costs,
         overlap: ov,
     })
