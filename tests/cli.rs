@@ -327,8 +327,8 @@ fn bad_roller_parameters_are_refused() {
     assert_clean_failure(dir.path(), &r, "ux,uy;vx,vy", "r.bank");
     let r = bake(&["--tile", "500x500"]);
     assert_clean_failure(dir.path(), &r, "needs", "r.bank");
-    let r = bake(&["--tile", "200x200", "--tiles", "20"]);
-    assert_clean_failure(dir.path(), &r, "20 tiles", "r.bank");
+    let r = bake(&["--tile", "200x200", "--tiles", "64"]);
+    assert_clean_failure(dir.path(), &r, "64 tiles", "r.bank");
     // The flags belong to the roller only.
     let r = surftile(
         dir.path(),

@@ -535,8 +535,8 @@ pub fn roller_tiles(
             .collect();
         scored.sort_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)));
         // Best-matching first, greedily, at least `sep` apart; where the greedy choice
-        // packs badly, the separation is relaxed (to half at most) before giving up.
-        for sep in [min_sep, 0.75 * min_sep, 0.5 * min_sep] {
+        // packs badly, the separation is relaxed (to three quarters) before giving up.
+        for sep in [min_sep, 0.75 * min_sep] {
             origins.truncate(1);
             for &(ok, _) in &scored {
                 if origins.len() == n_tiles {
@@ -558,7 +558,7 @@ pub fn roller_tiles(
                 what: "exemplar".into(),
                 message: format!(
                     "{n_tiles} tiles need {n_tiles} rhomboids at least {:.0} px apart; the exemplar holds {} (ask for fewer --tiles or a smaller --tile)",
-                    min_sep / 2.0,
+                    0.75 * min_sep,
                     origins.len()
                 ),
             });

@@ -1,7 +1,7 @@
 //! The toroidal placement rule (roller banks, seed 003; DESIGN.md "Runtime placement
 //! rules" 1): the plane is cut into the cells of a lattice in Hermite normal form —
 //! rectangles of A × C pixels whose rows shift by B — and cell (i, j) shows tile
-//! `hash(seed, i, j) mod K`. All tiles share their borders, so any arrangement is
+//! `hash(seed, i, j) mod K` ([`hash_tile`], reduced by [`pick_tile`]). All tiles share their borders, so any arrangement is
 //! seamless, and an oblique lattice costs the same as a square one (ALGORITHMS.md §1).
 
 use std::ops::Range;
@@ -9,7 +9,7 @@ use std::ops::Range;
 use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
-use crate::hash::{hash_vertex, pick_tile};
+use crate::hash::{hash_tile, pick_tile};
 
 /// One mip level: the level lattice's HNF and the tiles stored on it.
 struct Level {
@@ -44,6 +44,22 @@ fn div_floor(v: i64, d: i64, inv_d: f64) -> (i64, i64) {
         return (v.div_euclid(d), v.rem_euclid(d));
     }
     (q, r)
+}
+
+/// [`div_floor`] without its exact fallback: `None` where the estimate's single
+/// correction is not enough (never for |v| < 2⁵²; callers then take the slow path).
+#[inline(always)]
+fn div_floor_est(v: i64, d: i64, inv_d: f64) -> Option<(i64, i64)> {
+    // SAFETY: |v| < 2⁵³ and 0 < 1/d ≤ 1, so v/d is finite and far inside the i64 range.
+    let mut q = unsafe { (v as f64 * inv_d).to_int_unchecked::<i64>() };
+    let mut r = v.wrapping_sub(q.wrapping_mul(d));
+    let neg = r >> 63;
+    q += neg;
+    r += neg & d;
+    let over = (r >= d) as i64;
+    q += over;
+    r -= over * d;
+    ((r as u64) < d as u64).then_some((q, r))
 }
 
 impl Level {
@@ -130,7 +146,7 @@ impl ToroidalSurface {
         if self.tiles == 1 {
             0
         } else {
-            pick_tile(hash_vertex(self.seed, i, j)[0], self.tiles) as usize
+            pick_tile(hash_tile(self.seed, i, j), self.tiles) as usize
         }
     }
 
@@ -203,6 +219,58 @@ impl ToroidalSurface {
         out[..C].copy_from_slice(&acc);
     }
 
+    /// The one-channel, level-0 bilinear sample when its four texels lie inside one cell
+    /// and the cell arithmetic needs no exact fallback: the lean path of `height` (all
+    /// but one row and one column of each tile; [`Self::height_slow`] takes the rest).
+    #[inline(always)]
+    fn bilinear_inside(&self, xi: i64, yi: i64, fx: f32, fy: f32) -> Option<f32> {
+        let lv = &self.levels[0];
+        let (j, ly) = div_floor_est(yi, lv.c, lv.inv_c)?;
+        let (i, lx) = if lv.b == 0 {
+            // Rectangular cells: x's arithmetic does not wait for y's.
+            div_floor_est(xi, lv.a, lv.inv_a)?
+        } else if j.unsigned_abs() <= lv.j_safe {
+            div_floor_est(xi - j * lv.b, lv.a, lv.inv_a)?
+        } else {
+            return None;
+        };
+        if lx + 1 >= lv.a || ly + 1 >= lv.c {
+            return None;
+        }
+        let p = self.tile_of(i, j) * lv.tile_stride + (ly * lv.a + lx) as usize;
+        let row = lv.a as usize;
+        let t = &lv.texels;
+        debug_assert!(p + row + 1 < t.len());
+        // SAFETY: one channel; tile < K (pick_tile), 0 ≤ lx < A − 1 and 0 ≤ ly < C − 1,
+        // and Bank::validate checked K·A·C texels per level.
+        let (a, b, d, e) = unsafe {
+            (
+                *t.get_unchecked(p),
+                *t.get_unchecked(p + 1),
+                *t.get_unchecked(p + row),
+                *t.get_unchecked(p + row + 1),
+            )
+        };
+        let top = a + (b - a) * fx;
+        let bottom = d + (e - d) * fx;
+        // −0.0 + v = v: the same bits as the general path's accumulator.
+        Some(-0.0 + (top + (bottom - top) * fy))
+    }
+
+    /// `height` through the general sampler (cell borders, far rows, colour, NaN).
+    #[cold]
+    #[inline(never)]
+    fn height_slow(&self, x: f64, y: f64) -> f32 {
+        if self.channels != 1 || !in_range(x, y) {
+            let mut buf = [0.0f32; 4];
+            self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
+            return buf[0];
+        }
+        let mut acc = [-0.0f32; 1];
+        self.bilinear::<1>(0, x, y, 1.0, &mut acc);
+        acc[0]
+    }
+
     /// Step-1 rows at integer coordinates: each row is a run of copies, one per cell.
     fn copy_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         let c = self.channels;
@@ -243,13 +311,12 @@ impl Surface for ToroidalSurface {
 
     fn height(&self, x: f64, y: f64) -> f32 {
         if self.channels != 1 || !in_range(x, y) {
-            let mut buf = [0.0f32; 4];
-            self.sample_footprint(x, y, 1.0, &mut buf[..self.channels]);
-            return buf[0];
+            return self.height_slow(x, y);
         }
-        let mut acc = [-0.0f32; 1];
-        self.bilinear::<1>(0, x, y, 1.0, &mut acc);
-        acc[0]
+        // SAFETY: in range, so |x|, |y| < 2⁵².
+        let ((xi, fx), (yi, fy)) = unsafe { (floor_split(x), floor_split(y)) };
+        self.bilinear_inside(xi, yi, fx as f32, fy as f32)
+            .unwrap_or_else(|| self.height_slow(x, y))
     }
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
