@@ -1,8 +1,8 @@
 //! Gradient-domain seam healing for toroidal tiles (an addition to seed 003).
 //!
 //! A minimum-error cut hides a seam only as well as the exemplar allows: on smooth or
-//! form-laden maps every path through the overlap crosses a height step (al3d-1's cuts
-//! cost ~0.3 µm² per pixel, and its render had a seam score of 18.8 before healing). After
+//! form-laden maps every path through the overlap crosses a height step (on al3d-1 the
+//! pixel pairs along the cuts were 52× as rough as the rest of a render). After
 //! the cut, each texel of a tile knows the exemplar pixel it came from, so the seam pairs
 //! are known exactly: neighbours on the tile whose sources are not neighbours in the
 //! exemplar. Healing adds the smooth Λ-periodic correction `c` that makes the gradient
