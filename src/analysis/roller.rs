@@ -394,16 +394,12 @@ pub fn required_size(lattice: Lattice, overlap: Option<usize>) -> (usize, usize)
     ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize)
 }
 
-/// Sources of a tile in HNF storage: texel (x, y) of the `A × C` rectangle takes the
-/// exemplar pixel `src` gives for the representative in the rhomboid of its coset.
-fn sources_hnf(
-    f: &Frame,
-    lattice: Lattice,
-    src: &dyn Fn((i64, i64)) -> (i64, i64),
-) -> Vec<(i64, i64)> {
+/// `g` of the rhomboid representative of each texel (x, y) of the HNF `A × C`
+/// rectangle, row-major: a tile's sources, or any per-texel property.
+fn map_hnf<T>(f: &Frame, lattice: Lattice, g: &dyn Fn((i64, i64)) -> T) -> Vec<T> {
     (0..lattice.c)
         .flat_map(|y| (0..lattice.a).map(move |x| (x, y)))
-        .map(|(x, y)| src(f.rep(x, y)))
+        .map(|(x, y)| g(f.rep(x, y)))
         .collect()
 }
 
@@ -502,7 +498,7 @@ pub fn roller_tiles(
         img.at(p.0, p.1)
     };
     let at = |o: (i64, i64), d: (i64, i64)| img.at(o.0 + d.0, o.1 + d.1);
-    let src0 = sources_hnf(&f, lattice, &master_src);
+    let src0 = map_hnf(&f, lattice, &master_src);
     let mut tile0 = gather(&img, &src0);
     let c0 = heal(&lattice, exemplar, &src0, &mut tile0, None);
     let mut tiles = vec![tile0];
@@ -607,7 +603,7 @@ pub fn roller_tiles(
                         c >= cut[r.min(n - 1)]
                     })
             };
-            let src = sources_hnf(&f, lattice, &|d| {
+            let src = map_hnf(&f, lattice, &|d| {
                 let (s, t) = f.st_unit(d);
                 if interior(s, t) {
                     shift(ok, d)
@@ -615,13 +611,10 @@ pub fn roller_tiles(
                     master_src(d)
                 }
             });
-            let free: Vec<bool> = (0..lattice.c)
-                .flat_map(|y| (0..lattice.a).map(move |x| (x, y)))
-                .map(|(x, y)| {
-                    let (s, t) = f.st_unit(f.rep(x, y));
-                    interior(s, t)
-                })
-                .collect();
+            let free = map_hnf(&f, lattice, &|d| {
+                let (s, t) = f.st_unit(d);
+                interior(s, t)
+            });
             // T₀'s healed band everywhere outside the closed cut; the inside is healed
             // with the band held fixed, so every tile keeps T₀'s border exactly.
             let mut tile = gather(&img, &src);

@@ -28,29 +28,19 @@ struct Level {
 }
 
 /// ⌊v / d⌋ and v mod d for d > 0, from a floating-point estimate (an integer division
-/// costs more than the rest of a sample). The estimate is off by at most one for
-/// |v| < 2⁵³; the corrections are arithmetic; anything else takes the exact path.
+/// costs more than the rest of a sample): `None` where the estimate's single correction
+/// is not enough (callers then divide exactly, or take a slow path).
+///
+/// # Safety
+/// |v| ≤ 2⁶² + 2⁵³, so that v/d converts to i64 without overflow (callers pass in-range
+/// coordinates, or such a coordinate minus j·B with |j·B| ≤ 2⁶² by `j_safe`).
 #[inline(always)]
-fn div_floor(v: i64, d: i64, inv_d: f64) -> (i64, i64) {
-    let mut q = (v as f64 * inv_d) as i64;
-    let mut r = v.wrapping_sub(q.wrapping_mul(d));
-    let neg = (r < 0) as i64;
-    q -= neg;
-    r += neg * d;
-    let over = (r >= d) as i64;
-    q += over;
-    r -= over * d;
-    if r < 0 || r >= d {
-        return (v.div_euclid(d), v.rem_euclid(d));
-    }
-    (q, r)
-}
-
-/// [`div_floor`] without its exact fallback: `None` where the estimate's single
-/// correction is not enough (never for |v| < 2⁵²; callers then take the slow path).
-#[inline(always)]
-fn div_floor_est(v: i64, d: i64, inv_d: f64) -> Option<(i64, i64)> {
-    // SAFETY: |v| < 2⁵³ and 0 < 1/d ≤ 1, so v/d is finite and far inside the i64 range.
+unsafe fn div_floor_est(v: i64, d: i64, inv_d: f64) -> Option<(i64, i64)> {
+    debug_assert!(
+        v.unsigned_abs() <= (1 << 62) + (1 << 53),
+        "div_floor_est({v})"
+    );
+    // SAFETY: the caller's bound and 0 < 1/d ≤ 1 keep v/d inside the i64 range.
     let mut q = unsafe { (v as f64 * inv_d).to_int_unchecked::<i64>() };
     let mut r = v.wrapping_sub(q.wrapping_mul(d));
     let neg = r >> 63;
@@ -62,15 +52,39 @@ fn div_floor_est(v: i64, d: i64, inv_d: f64) -> Option<(i64, i64)> {
     ((r as u64) < d as u64).then_some((q, r))
 }
 
+/// ⌊v / d⌋ and v mod d for d > 0, for any v: the estimate, or exact division.
+#[inline(always)]
+fn div_floor(v: i64, d: i64, inv_d: f64) -> (i64, i64) {
+    let est = if v.unsigned_abs() < 1 << 62 {
+        // SAFETY: |v| < 2⁶².
+        unsafe { div_floor_est(v, d, inv_d) }
+    } else {
+        None
+    };
+    est.unwrap_or_else(|| (v.div_euclid(d), v.rem_euclid(d)))
+}
+
 impl Level {
+    /// x undone by the row shift of cell row j (x − j·B), or `None` on far rows of a long,
+    /// thin cell, where j·B would overflow. Rectangular cells (B = 0) return x without
+    /// waiting for j, so the x and y arithmetic run side by side.
+    #[inline(always)]
+    fn unshift(&self, x: i64, j: i64) -> Option<i64> {
+        if self.b == 0 {
+            Some(x)
+        } else if j.unsigned_abs() <= self.j_safe {
+            Some(x - j * self.b)
+        } else {
+            None
+        }
+    }
+
     /// Cell (i, j) of integer texel (x, y) and its position (lx, ly) in the HNF tile.
     #[inline(always)]
     fn locate(&self, x: i64, y: i64) -> (i64, i64, i64, i64) {
         let (j, ly) = div_floor(y, self.c, self.inv_c);
-        let xs = if j.unsigned_abs() <= self.j_safe {
-            x - j * self.b
-        } else {
-            // Far rows of a long, thin cell: j·B would overflow; the same cell exactly.
+        let Some(xs) = self.unshift(x, j) else {
+            // The same cell exactly, in i128.
             let xs = x as i128 - j as i128 * self.b as i128;
             let i = xs.div_euclid(self.a as i128);
             return (i as i64, j, (xs - i * self.a as i128) as i64, ly);
@@ -225,15 +239,9 @@ impl ToroidalSurface {
     #[inline(always)]
     fn bilinear_inside(&self, xi: i64, yi: i64, fx: f32, fy: f32) -> Option<f32> {
         let lv = &self.levels[0];
-        let (j, ly) = div_floor_est(yi, lv.c, lv.inv_c)?;
-        let (i, lx) = if lv.b == 0 {
-            // Rectangular cells: x's arithmetic does not wait for y's.
-            div_floor_est(xi, lv.a, lv.inv_a)?
-        } else if j.unsigned_abs() <= lv.j_safe {
-            div_floor_est(xi - j * lv.b, lv.a, lv.inv_a)?
-        } else {
-            return None;
-        };
+        // SAFETY: |xi|, |yi| < 2⁵² (in range), and unshift keeps |j·B| ≤ 2⁶².
+        let (j, ly) = unsafe { div_floor_est(yi, lv.c, lv.inv_c)? };
+        let (i, lx) = unsafe { div_floor_est(lv.unshift(xi, j)?, lv.a, lv.inv_a)? };
         if lx + 1 >= lv.a || ly + 1 >= lv.c {
             return None;
         }
