@@ -168,9 +168,13 @@ impl BlendSurface {
     }
 
     /// Skewed cell, half (true = the one holding the cell's origin) and barycentric
-    /// weights of the three vertices (ALGORITHMS.md §3). Selects, not branches: which
-    /// half a random point falls in is a coin flip (see [`floor_split`]). Only for
-    /// points that passed [`in_range`].
+    /// weights of the three vertices (ALGORITHMS.md §3). Only for points that passed
+    /// [`in_range`].
+    ///
+    /// Which half a random point falls in is a coin flip, and the compiler turns these
+    /// `if`s into a jump on it. That measured faster (about 1 ns per `height()`) than a
+    /// branch-free form with fixed vertex slots and min/abs weights: a right guess lets
+    /// all three vertex hashes start before the half is known.
     #[inline(always)]
     fn triangle(&self, x: f64, y: f64) -> (i64, i64, bool, [f32; 3]) {
         debug_assert!(in_range(x, y));
@@ -421,6 +425,7 @@ impl Surface for BlendSurface {
         }
     }
 
+    #[inline]
     fn height(&self, x: f64, y: f64) -> f32 {
         if self.channels != 1 {
             let mut buf = [0.0f32; 4];
