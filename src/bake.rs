@@ -18,7 +18,7 @@ use crate::analysis::gauss::{gaussianize, inverse_lut, lut_eval, quantile};
 use crate::analysis::level::level_plane;
 use crate::analysis::missing::fill_missing;
 use crate::analysis::periodic::periodic_smooth;
-use crate::analysis::periodicity::detect_lattice;
+use crate::analysis::periodicity::{Detection, detect};
 use crate::analysis::resample::{DownsampleFilter, downsample};
 use crate::analysis::roller::{mip_down, required_size, roller_tiles};
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
@@ -521,14 +521,8 @@ impl Baker {
             Lattice::from_basis(u, v)?
         } else if let Some([tw, th]) = self.tile {
             Lattice::rectangular(tw as i64, th as i64)?
-        } else if let Some(p) = detect_lattice(&ex) {
-            progress(&format!(
-                "periodicity detected: u = ({}, {}), v = ({}, {}), autocorrelation {:.2}",
-                p.u.0, p.u.1, p.v.0, p.v.1, p.strength
-            ));
-            Lattice::from_basis(p.u, p.v)?
         } else {
-            // Stochastic: the largest tile that leaves the overlap (a sixth of the tile,
+            // A stochastic side: the largest that leaves the overlap (a sixth of the tile,
             // at least 8 px) and, for several tiles, room for their rhomboids.
             let per_axis = (self.tiles as f64).sqrt().ceil();
             let side = |n: usize| {
@@ -536,20 +530,57 @@ impl Baker {
                 let t = ((n as f64 * 6.0 / 7.0).min(n as f64 - 8.0) / room).floor();
                 (t.max(2.0)) as i64
             };
-            let (mut tw, mut th) = (side(w), side(h));
-            // Shrink until the tile plus its overlap fits (the estimate rounds).
-            while tw > 2 && th > 2 {
-                let (nw, nh) = required_size(Lattice::rectangular(tw, th)?, self.overlap);
-                if nw <= w && nh <= h {
-                    break;
+            let fits = |l: Lattice| {
+                let (nw, nh) = required_size(l, self.overlap);
+                (nw <= w, nh <= h)
+            };
+            match detect(&ex) {
+                Detection::Lattice(p) => {
+                    progress(&format!(
+                        "periodicity detected: u = ({}, {}), v = ({}, {}), autocorrelation {:.2}",
+                        p.u.0, p.u.1, p.v.0, p.v.1, p.strength
+                    ));
+                    Lattice::from_basis(p.u, p.v)?
                 }
-                tw -= (nw > w) as i64;
-                th -= (nh > h) as i64;
+                Detection::Stripes { u, lay, strength } => {
+                    // Repeats across the lay only: u, and a stochastic side along the
+                    // lay, shortened until tile and overlap fit.
+                    let along = |t: i64| {
+                        (
+                            (t as f64 * lay.0).round() as i64,
+                            (t as f64 * lay.1).round() as i64,
+                        )
+                    };
+                    let free = if lay.0.abs() > lay.1.abs() { w } else { h };
+                    let mut t = side(free);
+                    while t > 2 && fits(Lattice::from_basis(u, along(t))?) != (true, true) {
+                        t -= 1;
+                    }
+                    let v = along(t);
+                    progress(&format!(
+                        "stripes detected: u = ({}, {}) (autocorrelation {strength:.2}), no \
+                         repeat along the lay: v = ({}, {}), stochastic",
+                        u.0, u.1, v.0, v.1
+                    ));
+                    Lattice::from_basis(u, v)?
+                }
+                Detection::Stochastic => {
+                    let (mut tw, mut th) = (side(w), side(h));
+                    // Shrink until the tile plus its overlap fits (the estimate rounds).
+                    while tw > 2 && th > 2 {
+                        let (fw, fh) = fits(Lattice::rectangular(tw, th)?);
+                        if fw && fh {
+                            break;
+                        }
+                        tw -= !fw as i64;
+                        th -= !fh as i64;
+                    }
+                    progress(&format!(
+                        "no periodicity found: axis-aligned {tw}×{th} tiles"
+                    ));
+                    Lattice::rectangular(tw, th)?
+                }
             }
-            progress(&format!(
-                "no periodicity found: axis-aligned {tw}×{th} tiles"
-            ));
-            Lattice::rectangular(tw, th)?
         };
         let rt = roller_tiles(&ex, lattice, self.tiles, self.overlap, progress)?;
         let mut levels = Vec::new();

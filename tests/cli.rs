@@ -293,6 +293,9 @@ fn demo_writes_the_gallery() {
         "height-zoom8.png",
         "shaded.png",
         "stats.json",
+        "x3p-2-roller.bank",
+        "roller-exemplar.png",
+        "roller-height.png",
     ] {
         let p = dir.path().join("surftile-demo").join(f);
         assert!(

@@ -10,6 +10,7 @@ use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_lev
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
 use crate::hash::{hash_tile, pick_tile};
+use crate::lattice::Lattice;
 
 /// One mip level: the level lattice's HNF and the tiles stored on it.
 struct Level {
@@ -100,6 +101,9 @@ pub struct ToroidalSurface {
     channels: usize,
     tiles: u32,
     levels: Vec<Level>,
+    /// For several tiles on an oblique lattice: B⁻¹ of the reduced basis B = [u v]
+    /// (row-major), whose rhomboid cells ⌊B⁻¹·p⌋ are what the tiles were cut in.
+    rhomboid: Option<[f64; 4]>,
 }
 
 impl ToroidalSurface {
@@ -113,7 +117,7 @@ impl ToroidalSurface {
             )));
         }
         bank.validate("given to ToroidalSurface")?;
-        let levels = h
+        let levels: Vec<Level> = h
             .levels
             .iter()
             .enumerate()
@@ -134,11 +138,33 @@ impl ToroidalSurface {
                 }
             })
             .collect();
+        // The tiles differ only inside their rhomboid {s·u + t·v : s, t ∈ [0, 1)} of the
+        // reduced basis (outside it, in the cut band, they are identical). On a
+        // rectangular lattice the rhomboids are the HNF cells (up to which side a
+        // border pixel falls on, where the tiles agree); on an oblique one the HNF rows
+        // cut through them, so the tile is chosen by rhomboid cell instead.
+        let l0 = &levels[0];
+        let rhomboid = (h.tiles > 1 && l0.b != 0).then(|| {
+            let [u, v] = Lattice {
+                a: l0.a,
+                b: l0.b,
+                c: l0.c,
+            }
+            .reduced_basis();
+            let det = (u.0 * v.1 - u.1 * v.0) as f64;
+            [
+                v.1 as f64 / det,
+                -v.0 as f64 / det,
+                -u.1 as f64 / det,
+                u.0 as f64 / det,
+            ]
+        });
         Ok(ToroidalSurface {
             seed,
             channels: h.channels,
             tiles: h.tiles as u32,
             levels,
+            rhomboid,
         })
     }
 
@@ -150,25 +176,42 @@ impl ToroidalSurface {
         }
         // SAFETY: in range, so |x|, |y| < 2⁵².
         let ((xi, _), (yi, _)) = unsafe { (floor_split(x), floor_split(y)) };
-        let (i, j, _, _) = self.levels[0].locate(xi, yi);
-        (i, j, false)
+        match self.rhomboid_cell(xi, yi) {
+            Some((s, t)) => (s, t, true),
+            None => {
+                let (i, j, _, _) = self.levels[0].locate(xi, yi);
+                (i, j, false)
+            }
+        }
     }
 
-    /// Tile shown by cell (i, j).
+    /// The rhomboid cell of level-0 position (x, y), where tiles are chosen by rhomboid.
     #[inline(always)]
-    fn tile_of(&self, i: i64, j: i64) -> usize {
+    fn rhomboid_cell(&self, x: i64, y: i64) -> Option<(i64, i64)> {
+        let m = self.rhomboid?;
+        let (x, y) = (x as f64, y as f64);
+        // Float rounding can only move a pixel lying on a rhomboid border into the
+        // neighbour, and there every tile holds the same texels.
+        let (s, t) = (m[0] * x + m[1] * y, m[2] * x + m[3] * y);
+        Some((s.floor() as i64, t.floor() as i64))
+    }
+
+    /// Tile shown at texel (x, y) of level `l` in HNF cell (i, j).
+    #[inline(always)]
+    fn tile_of(&self, l: usize, i: i64, j: i64, x: i64, y: i64) -> usize {
         if self.tiles == 1 {
-            0
-        } else {
-            pick_tile(hash_tile(self.seed, i, j), self.tiles) as usize
+            return 0;
         }
+        let (i, j) = self.rhomboid_cell(x << l, y << l).unwrap_or((i, j));
+        pick_tile(hash_tile(self.seed, i, j), self.tiles) as usize
     }
 
     /// Offset of texel (x, y) of level `lv` in its texel array.
     #[inline(always)]
-    fn texel_at(&self, lv: &Level, x: i64, y: i64) -> usize {
+    fn texel_at(&self, l: usize, x: i64, y: i64) -> usize {
+        let lv = &self.levels[l];
         let (i, j, lx, ly) = lv.locate(x, y);
-        self.tile_of(i, j) * lv.tile_stride + (ly * lv.a + lx) as usize * self.channels
+        self.tile_of(l, i, j, x, y) * lv.tile_stride + (ly * lv.a + lx) as usize * self.channels
     }
 
     /// Bilinear sample of level `l` at texel coordinates (px, py) (texel centres at
@@ -183,15 +226,15 @@ impl ToroidalSurface {
         let t = &lv.texels;
         let (p00, p10, p01, p11) = if lx + 1 < lv.a && ly + 1 < lv.c {
             // All four corners in one cell (all but a border row and column).
-            let p = self.tile_of(i, j) * lv.tile_stride + (ly * lv.a + lx) as usize * C;
+            let p = self.tile_of(l, i, j, xi, yi) * lv.tile_stride + (ly * lv.a + lx) as usize * C;
             let row = lv.a as usize * C;
             (p, p + C, p + row, p + row + C)
         } else {
             (
-                self.texel_at(lv, xi, yi),
-                self.texel_at(lv, xi + 1, yi),
-                self.texel_at(lv, xi, yi + 1),
-                self.texel_at(lv, xi + 1, yi + 1),
+                self.texel_at(l, xi, yi),
+                self.texel_at(l, xi + 1, yi),
+                self.texel_at(l, xi, yi + 1),
+                self.texel_at(l, xi + 1, yi + 1),
             )
         };
         debug_assert!(p11.max(p10).max(p01).max(p00) + C <= t.len());
@@ -245,7 +288,7 @@ impl ToroidalSurface {
         if lx + 1 >= lv.a || ly + 1 >= lv.c {
             return None;
         }
-        let p = self.tile_of(i, j) * lv.tile_stride + (ly * lv.a + lx) as usize;
+        let p = self.tile_of(0, i, j, xi, yi) * lv.tile_stride + (ly * lv.a + lx) as usize;
         let row = lv.a as usize;
         let t = &lv.texels;
         debug_assert!(p + row + 1 < t.len());
@@ -292,7 +335,8 @@ impl ToroidalSurface {
             let mut done = 0;
             while done < region.width {
                 let run = ((lv.a - lx) as usize).min(region.width - done);
-                let start = self.tile_of(i, j) * lv.tile_stride + row_base + lx as usize * c;
+                let start =
+                    self.tile_of(0, i, j, 0, 0) * lv.tile_stride + row_base + lx as usize * c;
                 line[done * c..(done + run) * c]
                     .copy_from_slice(&lv.texels[start..start + run * c]);
                 done += run;
@@ -339,8 +383,12 @@ impl Surface for ToroidalSurface {
             && in_range(x0, y0)
             && in_range(x1, y1)
         {
-            // Integer samples at full resolution are stored texels: copy them.
-            return self.copy_rows(region, rows, out);
+            // Integer samples at full resolution are stored texels: copy them, one run
+            // per HNF cell. Several tiles on an oblique lattice change tile at rhomboid
+            // borders, which cut across HNF rows: those are sampled one by one.
+            if self.rhomboid.is_none() {
+                return self.copy_rows(region, rows, out);
+            }
         }
         fill_rows_by_sample(self, region, rows, out);
     }
