@@ -168,8 +168,10 @@ impl ToroidalSurface {
         })
     }
 
-    /// The lattice cell (i, j) that pixel (x, y) lies in (for seam scores); points
-    /// outside the coordinate range share the id `(i64::MIN, i64::MIN, false)`.
+    /// The lattice cell that pixel (x, y) lies in (for seam scores): the HNF cell
+    /// `(i, j, false)`, or for several tiles on an oblique lattice the rhomboid cell
+    /// `(s, t, true)` that chooses the tile. Points outside the coordinate range share
+    /// the id `(i64::MIN, i64::MIN, false)`.
     pub fn cell_id(&self, x: f64, y: f64) -> (i64, i64, bool) {
         if !in_range(x, y) {
             return (i64::MIN, i64::MIN, false);
