@@ -337,6 +337,8 @@ impl ToroidalSurface {
             let mut done = 0;
             while done < region.width {
                 let run = ((lv.a - lx) as usize).min(region.width - done);
+                // Only reached without rhomboids (see `fill_rows`): the HNF cell decides
+                // and the position is not looked at.
                 let start =
                     self.tile_of(0, i, j, 0, 0) * lv.tile_stride + row_base + lx as usize * c;
                 line[done * c..(done + run) * c]
