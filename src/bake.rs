@@ -307,8 +307,16 @@ impl Baker {
         source: &str,
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
-        if self.method == Method::Roller {
-            return self.bake_roller(image, source, progress);
+        match self.method {
+            Method::Roller => return self.bake_roller(image, source, progress),
+            Method::Milling => {
+                return Err(Error::param(
+                    "method",
+                    "milling",
+                    "an image method (rpn, adsn, roller): milling banks are baked from a TOML configuration by MillingSurface::to_bank",
+                ));
+            }
+            Method::Rpn | Method::Adsn => {}
         }
         let (ex, spacing_um) = self.preprocess(image, source)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
@@ -359,7 +367,9 @@ impl Baker {
             let patch = match self.method {
                 Method::Adsn => asymptotic_spot_noise(&crops, pw, ph, &mut rng),
                 // The roller returned at the top of `bake`.
-                Method::Rpn | Method::Roller => random_phase_noise(&crops, pw, ph, &mut rng),
+                Method::Rpn | Method::Roller | Method::Milling => {
+                    random_phase_noise(&crops, pw, ph, &mut rng)
+                }
             };
             let tile = &mut level0[k * pw * ph * c..(k + 1) * pw * ph * c];
             for (ch, plane) in patch.iter().enumerate() {
@@ -459,6 +469,7 @@ impl Baker {
             lut_z_range: LUT_Z_RANGE,
             exemplar,
             seam_costs: Vec::new(),
+            milling: None,
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
@@ -648,6 +659,7 @@ impl Baker {
                 self.fill_missing
             ),
             seam_costs: rt.seam_costs,
+            milling: None,
         };
         let luts = vec![Vec::new(); texels.len()];
         let bank = Bank {

@@ -34,6 +34,7 @@ pub mod fft;
 pub mod hash;
 pub mod io;
 pub mod lattice;
+pub mod models;
 pub mod raster;
 pub mod render;
 pub mod shade;

@@ -15,6 +15,7 @@ use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::{Bank, Method, Rule};
 use surftile::demo::run_demo;
 use surftile::io::{ReadOptions, parse_shape, read_image};
+use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::render::{checked_size, render_to_file};
 use surftile::stats::compare;
 use surftile::stream::{Region, Surface};
@@ -106,6 +107,39 @@ enum Command {
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         step: f64,
         /// Placement seed (which tile goes where).
+        #[arg(long, default_value_t = 0)]
+        seed: u32,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Write a Phong-shaded 8-bit PNG instead of heights.
+        #[arg(long)]
+        shade: bool,
+    },
+    /// Render a region of a face-milled surface (seed 000 §4) from a TOML configuration
+    /// or a preset name (e.g. parallel-d4-ae05) to .png, .tif or .npy; heights in µm.
+    Mill {
+        /// Milling configuration (.toml) or preset name.
+        config: PathBuf,
+        /// x of the first sample, in surface pixels.
+        #[arg(long, allow_negative_numbers = true)]
+        x: f64,
+        /// y of the first sample, in surface pixels.
+        #[arg(long, allow_negative_numbers = true)]
+        y: f64,
+        /// Width in samples.
+        #[arg(long, allow_negative_numbers = true)]
+        w: i64,
+        /// Height in samples.
+        #[arg(long, allow_negative_numbers = true)]
+        h: i64,
+        /// Pixel spacing in µm.
+        #[arg(long, allow_negative_numbers = true)]
+        spacing: f64,
+        /// Distance between samples in pixels; above 1 each sample averages its footprint.
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+        step: f64,
+        /// Seed of the ring parameters and noise.
         #[arg(long, default_value_t = 0)]
         seed: u32,
         /// Output file.
@@ -305,6 +339,30 @@ fn parse_tile(text: &str) -> Result<(usize, usize)> {
     ))
 }
 
+/// `surftile bake --method milling CONFIG`: configuration, tables and height adaptation
+/// into a bank.
+fn bake_milling(config: &Path, spacing: Option<f64>, seed: u64, out: &Path) -> Result<()> {
+    let spacing = spacing.ok_or_else(|| {
+        Error::param(
+            "spacing",
+            "(not set)",
+            "the pixel spacing in µm of the surface the bank renders, e.g. --spacing 6.1",
+        )
+    })?;
+    check_output(out)?;
+    let start = Instant::now();
+    let (c, base) = MillingConfig::load(config)?;
+    let surface =
+        MillingSurface::new(&c, spacing, seed as u32)?.adapt_from_config(base.as_deref())?;
+    surface.to_bank(&config.display().to_string())?.write(out)?;
+    eprintln!(
+        "bake: wrote {} in {:.2} s",
+        out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
 fn run(command: Command) -> Result<()> {
     match command {
         Command::Bake {
@@ -327,6 +385,9 @@ fn run(command: Command) -> Result<()> {
             tile,
             overlap,
         } => {
+            if method == Method::Milling {
+                return bake_milling(&exemplar, spacing, seed, &out);
+            }
             let filter = match downsample_filter {
                 FilterArg::Nearest => DownsampleFilter::Nearest,
                 FilterArg::Area => DownsampleFilter::Area,
@@ -422,6 +483,50 @@ fn run(command: Command) -> Result<()> {
             );
             Ok(())
         }
+        Command::Mill {
+            config,
+            x,
+            y,
+            w,
+            h,
+            spacing,
+            step,
+            seed,
+            out,
+            shade,
+        } => {
+            let region = Region::new(
+                coordinate("x", x)?,
+                coordinate("y", y)?,
+                checked_size("w", w)?,
+                checked_size("h", h)?,
+            )
+            .with_step(step);
+            region.validate()?;
+            check_output(&out)?;
+            let (config, base) = MillingConfig::load(&config)?;
+            let start = Instant::now();
+            let surface =
+                MillingSurface::new(&config, spacing, seed)?.adapt_from_config(base.as_deref())?;
+            render_to_file(
+                &surface,
+                &region,
+                &out,
+                shade,
+                Some(spacing),
+                &mut progress_reporter("mill"),
+            )?;
+            eprintln!(
+                "mill: wrote {} ({}×{} samples, {:.3}×{:.3} mm) in {:.2} s",
+                out.display(),
+                region.width,
+                region.height,
+                region.width as f64 * step * spacing / 1000.0,
+                region.height as f64 * step * spacing / 1000.0,
+                start.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
         Command::Sample { bank, x, y, seed } => {
             let (x, y) = (coordinate("x", x)?, coordinate("y", y)?);
             let (_, surface) = load_surface(&bank, seed)?;
@@ -440,6 +545,31 @@ fn run(command: Command) -> Result<()> {
                 let h = &b.header;
                 println!("bank        {}", bank.display());
                 match h.rule {
+                    Rule::Milling => {
+                        if let Some(m) = &h.milling {
+                            let c = &m.config;
+                            println!(
+                                "rule        milling: {:?} path, d = {} mm, ρ = {} mm, δ = {} mm, β = {}°, {:?} rings, {:?} interaction, ε = {}",
+                                c.path.kind,
+                                c.tool.diameter_mm,
+                                (1.0 - c.path.overlap) * c.tool.diameter_mm,
+                                c.path.step_mm,
+                                c.path.angle_deg,
+                                c.shape.kind,
+                                c.interaction.kind,
+                                c.path.reorder
+                            );
+                            if let Some(a) = m.adaptation {
+                                println!(
+                                    "adaptation  model mean {:.4} µm, std {:.4} µm → mean {:.4} µm, std {:.4} µm",
+                                    a.model_mean_um,
+                                    a.model_std_um,
+                                    a.target_mean_um,
+                                    a.target_std_um
+                                );
+                            }
+                        }
+                    }
                     Rule::Blend => {
                         println!("rule        blend (triangle edge {} px)", h.triangle_edge)
                     }

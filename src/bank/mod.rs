@@ -37,6 +37,9 @@ pub enum Rule {
     /// Toroidal tiles with identical borders on a lattice (roller, seed 003): cell (i, j)
     /// shows tile `hash(seed, i, j) mod K`, stored in Hermite normal form.
     Toroidal,
+    /// The procedural face-milling model (seed 000 §4): no tiles; the bank holds the
+    /// configuration, the radial shape table and the angular noise profiles.
+    Milling,
 }
 
 impl std::fmt::Display for Rule {
@@ -44,6 +47,7 @@ impl std::fmt::Display for Rule {
         f.write_str(match self {
             Rule::Blend => "blend",
             Rule::Toroidal => "toroidal",
+            Rule::Milling => "milling",
         })
     }
 }
@@ -58,6 +62,8 @@ pub enum Method {
     Adsn,
     /// Generalized roller: double toroidal tiles (seed 003).
     Roller,
+    /// Procedural face milling (seed 000 §4); the exemplar is a milling TOML file.
+    Milling,
 }
 
 impl std::fmt::Display for Method {
@@ -66,6 +72,7 @@ impl std::fmt::Display for Method {
             Method::Rpn => "rpn",
             Method::Adsn => "adsn",
             Method::Roller => "roller",
+            Method::Milling => "milling",
         })
     }
 }
@@ -143,6 +150,9 @@ pub struct BankHeader {
     /// cut of each further tile).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub seam_costs: Vec<f64>,
+    /// Milling rule: the configuration and height adaptation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub milling: Option<crate::models::milling::MillingBankInfo>,
 }
 
 /// A bank in memory: header, texels per level and T⁻¹ tables per level.
@@ -167,6 +177,9 @@ impl Bank {
         }
         if h.tiles == 0 || h.tiles > 4096 {
             return bad(format!("{} tiles; expected 1 to 4096", h.tiles));
+        }
+        if h.rule == Rule::Milling {
+            return self.validate_milling(what);
         }
         let [w, ht] = h.tile_size;
         let toroidal = h.rule == Rule::Toroidal;
@@ -282,6 +295,65 @@ impl Bank {
                     ));
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Validation of a milling bank: one level of noise profiles, one shape table, and
+    /// a configuration that passes its own checks.
+    fn validate_milling(&self, what: &str) -> Result<()> {
+        use crate::models::milling::ring::{NOISE_PROFILES, NOISE_SAMPLES, SHAPE_LUT};
+        let h = &self.header;
+        let bad = |m: String| Err(Error::bank(what, m));
+        let Some(info) = &h.milling else {
+            return bad("milling rule without a milling section".into());
+        };
+        info.config
+            .validate()
+            .map_err(|e| Error::bank(what, format!("configuration: {e}")))?;
+        if h.channels != 1
+            || h.tiles != NOISE_PROFILES
+            || h.tile_size != [NOISE_SAMPLES, 1]
+            || h.levels.len() != 1
+            || h.levels[0].size != [NOISE_SAMPLES, 1]
+            || h.lut_size != SHAPE_LUT
+        {
+            return bad(format!(
+                "milling layout: expected 1 channel, {NOISE_PROFILES} noise profiles of {NOISE_SAMPLES} samples, 1 level and a shape table of {SHAPE_LUT}"
+            ));
+        }
+        if !h.spacing_um.is_some_and(|s| s.is_finite() && s > 0.0) {
+            return bad("milling bank without a positive pixel spacing".into());
+        }
+        if let Some(a) = &info.adaptation
+            && !(a.model_std_um > 0.0
+                && a.target_std_um > 0.0
+                && [
+                    a.model_mean_um,
+                    a.model_std_um,
+                    a.target_mean_um,
+                    a.target_std_um,
+                ]
+                .iter()
+                .all(|v| v.is_finite()))
+        {
+            return bad(format!(
+                "height adaptation {a:?} is not finite and positive"
+            ));
+        }
+        if self.texels.len() != 1 || self.luts.len() != 1 {
+            return bad("level count differs between header and data".into());
+        }
+        if self.texels[0].len() != NOISE_PROFILES * NOISE_SAMPLES || self.luts[0].len() != SHAPE_LUT
+        {
+            return bad("milling tables have the wrong length".into());
+        }
+        if self.texels[0]
+            .iter()
+            .chain(&self.luts[0])
+            .any(|v| !(v.abs() <= 1.0))
+        {
+            return bad("milling tables hold values outside [−1, 1]".into());
         }
         Ok(())
     }

@@ -24,6 +24,9 @@ pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
     Ok(match bank.header.rule {
         Rule::Blend => Box::new(BlendSurface::new(bank, seed)?),
         Rule::Toroidal => Box::new(ToroidalSurface::new(bank, seed)?),
+        Rule::Milling => Box::new(crate::models::milling::MillingSurface::from_bank(
+            bank, seed,
+        )?),
     })
 }
 

@@ -1,0 +1,443 @@
+//! Face-milled surfaces (seed 000 §4) as an infinite [`Surface`] with O(1) lookup.
+//!
+//! The model: rings R_k = S_k·T_k + N_k (shape, tilting plane, angular noise; §4.1)
+//! combined by an interaction f_k (minimum, latest or convex combination; §4.2) in the
+//! order a tool path (parallel lines or an Archimedean spiral; §4.3) mills them. The
+//! paper evaluates every ring of the image for every pixel and names the open problem:
+//! "a fast searching algorithm to find all rings affecting one surface point". Here:
+//!
+//! - every ring's random parameters come from the hash of its index, so nothing is
+//!   stored per ring and the path is endless;
+//! - the rings that can reach a point are found from the path geometry
+//!   ([`ToolPath::candidates`]): on parallel paths, the lines within reach and on each
+//!   the two short runs of centres whose annulus can contain the point; on spirals, the
+//!   turns within reach and on each the arc-length window, converted to ring indices;
+//! - the few rings found are folded in their milling order (a sort of about five keys).
+//!
+//! [`BruteForce`] is the slow twin: every ring of a finite path, the paper's way.
+//!
+//! **ε, the ring-order changes.** The paper permutes a random ⌈εn⌉ of the n rings of
+//! the image globally. A global permutation needs the whole image's ring list, so here
+//! each ring is reordered with probability ε (its own hash) and moves by a hashed 1 to
+//! m rings forwards or backwards along its line (parallel) or spiral, m =
+//! `path.reorder_reach_rings` (default ⌈2R/δ⌉, enough to pass every ring of the same
+//! line that overlaps it). As in the paper, an ε share of the rings appears out of
+//! order with its overlapping neighbours, above or below them with equal chance; unlike
+//! it, a reordered ring never jumps ahead of or behind rings of another line (which
+//! overlap it only at its sides), and the result does not depend on the image's extent.
+//!
+//! **Interactions outside a ring.** Latest and convex change f only on the ring's
+//! support P_k (latest as the paper states; for convex, applying (1 − A_k) to the
+//! whole plane would shrink every earlier ring's mark at each new ring anywhere, which
+//! on an endless path leaves nothing). Minimum follows the paper: R_k = 0 off P_k, so
+//! f = min(0, rings covering the point).
+//!
+//! Units: surface coordinates are pixels of `spacing_um`; the model works in mm and
+//! gives heights in µm.
+
+pub mod config;
+pub mod path;
+pub mod ring;
+
+use smallvec::SmallVec;
+
+use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
+use crate::error::{Error, Result};
+use crate::stream::{Surface, in_range};
+use config::InteractionKind;
+pub use config::MillingConfig;
+pub use path::ToolPath;
+use ring::{Key, NOISE_PROFILES, NOISE_SAMPLES, Ring, RingModel, SHAPE_LUT};
+
+/// The height adaptation of seed 000 §4.4: heights are mapped by
+/// h′ = (h − model_mean)·target_std/model_std + target_mean.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Adaptation {
+    /// Mean of the model's heights (µm), estimated once from a large sample.
+    pub model_mean_um: f64,
+    /// Standard deviation of the model's heights (µm).
+    pub model_std_um: f64,
+    /// Target mean (µm).
+    pub target_mean_um: f64,
+    /// Target standard deviation (µm).
+    pub target_std_um: f64,
+}
+
+/// What a milling bank stores beside its tables (`BankHeader::milling`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MillingBankInfo {
+    /// The configuration, every key included.
+    pub config: MillingConfig,
+    /// The height adaptation, when the configuration asks for one.
+    pub adaptation: Option<Adaptation>,
+}
+
+/// An endless face-milled surface (seed 000 §4), sampled in O(1).
+#[derive(Clone, Debug)]
+pub struct MillingSurface {
+    config: MillingConfig,
+    rings: RingModel,
+    path: ToolPath,
+    lut: Vec<f32>,
+    noise: Vec<f32>,
+    mm_per_px: f64,
+    adaptation: Option<Adaptation>,
+}
+
+/// Samples of the statistics estimate: 2¹⁸ points.
+const STAT_SAMPLES: usize = 1 << 18;
+
+impl MillingSurface {
+    /// The surface of `config` (validated here) sampled at `spacing_um` µm per pixel,
+    /// with placement seed `seed` (ring parameters and noise profiles).
+    pub fn new(config: &MillingConfig, spacing_um: f64, seed: u32) -> Result<MillingSurface> {
+        config.validate()?;
+        let noise = ring::noise_profiles(
+            config.noise.count_mean,
+            config.noise.frequency_mean,
+            seed as u64,
+        );
+        Self::from_parts(config, spacing_um, seed, ring::shape_table(), noise, None)
+    }
+
+    fn from_parts(
+        config: &MillingConfig,
+        spacing_um: f64,
+        seed: u32,
+        lut: Vec<f32>,
+        noise: Vec<f32>,
+        adaptation: Option<Adaptation>,
+    ) -> Result<MillingSurface> {
+        if !(spacing_um.is_finite() && spacing_um > 0.0 && spacing_um < 1e9) {
+            return Err(Error::param(
+                "spacing",
+                spacing_um,
+                "a positive pixel spacing in µm",
+            ));
+        }
+        Ok(MillingSurface {
+            config: config.clone(),
+            rings: RingModel::new(config, seed),
+            path: ToolPath::new(config),
+            lut,
+            noise,
+            mm_per_px: spacing_um / 1000.0,
+            adaptation,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MillingConfig {
+        &self.config
+    }
+
+    /// Pixel spacing in µm.
+    pub fn spacing_um(&self) -> f64 {
+        self.mm_per_px * 1000.0
+    }
+
+    /// The height adaptation in use.
+    pub fn adaptation(&self) -> Option<Adaptation> {
+        self.adaptation
+    }
+
+    /// Mean and standard deviation (µm) of the unadapted model, from 2¹⁸ points spread
+    /// by the R2 low-discrepancy sequence over a square of 40 ring diameters around the
+    /// origin (around the spiral's origin for spirals).
+    pub fn model_stats(&self) -> (f64, f64) {
+        let side = 20.0 * self.config.tool.diameter_mm;
+        let centre = match &self.path {
+            ToolPath::Spiral { origin, .. } => *origin,
+            _ => (0.0, 0.0),
+        };
+        // R2 sequence (Roberts 2018): fractional parts of n·(1/g, 1/g²), g the plastic number.
+        let g = 1.324_717_957_244_746f64;
+        let (a1, a2) = (1.0 / g, 1.0 / (g * g));
+        let mut sum = 0.0;
+        let mut sum2 = 0.0;
+        for n in 0..STAT_SAMPLES {
+            let (u, v) = ((0.5 + a1 * n as f64).fract(), (0.5 + a2 * n as f64).fract());
+            let h = self.eval_mm(centre.0 + (u - 0.5) * side, centre.1 + (v - 0.5) * side);
+            sum += h;
+            sum2 += h * h;
+        }
+        let mean = sum / STAT_SAMPLES as f64;
+        (
+            mean,
+            (sum2 / STAT_SAMPLES as f64 - mean * mean).max(0.0).sqrt(),
+        )
+    }
+
+    /// The same surface with heights matched to `target` (mean, std) in µm (§4.4),
+    /// the model's own statistics estimated once by [`Self::model_stats`].
+    pub fn adapted_to(mut self, target_mean_um: f64, target_std_um: f64) -> Result<Self> {
+        if !target_mean_um.is_finite() {
+            return Err(Error::param(
+                "adapt.mean_um",
+                target_mean_um,
+                "a finite mean height in µm",
+            ));
+        }
+        if !(target_std_um.is_finite() && target_std_um > 0.0) {
+            return Err(Error::param(
+                "adapt.std_um",
+                target_std_um,
+                "a positive standard deviation in µm",
+            ));
+        }
+        let (mean, std) = self.model_stats();
+        if std <= 0.0 {
+            return Err(Error::param(
+                "adapt",
+                "(flat model)",
+                "a configuration whose heights vary, to scale them to a standard deviation",
+            ));
+        }
+        self.adaptation = Some(Adaptation {
+            model_mean_um: mean,
+            model_std_um: std,
+            target_mean_um,
+            target_std_um,
+        });
+        Ok(self)
+    }
+
+    /// Applies the configuration's `[adapt]` section, reading a measurement relative
+    /// to `base` (the configuration's folder).
+    pub fn adapt_from_config(self, base: Option<&std::path::Path>) -> Result<Self> {
+        let Some(adapt) = self.config.adapt.clone() else {
+            return Ok(self);
+        };
+        let (mean, std) = match &adapt.measurement {
+            Some(file) => {
+                let path = base.map_or_else(|| file.into(), |b| b.join(file));
+                let image = crate::io::read_image(&path, &Default::default())?;
+                let mut r = image.raster.channel(0);
+                let what = path.display().to_string();
+                let missing = r.count_nan();
+                if missing > 0 {
+                    crate::analysis::missing::fill_missing(&mut r, &what)?;
+                }
+                crate::analysis::level::level_plane(&mut r);
+                let s = crate::stats::height_stats(&r);
+                (s.mean, s.sq)
+            }
+            None => {
+                let (m, s) = self.model_stats();
+                (adapt.mean_um.unwrap_or(m), adapt.std_um.unwrap_or(s))
+            }
+        };
+        self.adapted_to(mean, std)
+    }
+
+    /// f(x, y) in µm at a point in mm, before adaptation: the indexed evaluation.
+    #[inline]
+    pub fn eval_mm(&self, x: f64, y: f64) -> f64 {
+        let m = &self.rings;
+        let spiral = self.path.is_spiral();
+        let ring_at = |id| {
+            let (id, cx, cy, dir, order) = self.path.nominal(id);
+            m.place(id, cx, cy, dir, order)
+        };
+        match m.interaction {
+            InteractionKind::Min => {
+                let mut v = 0.0f64;
+                self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
+                    if let Some((r, _)) = m.value(&ring_at(id), x, y, &self.lut, &self.noise) {
+                        v = v.min(r);
+                    }
+                });
+                v
+            }
+            InteractionKind::Latest => {
+                let mut best: Option<(Key, f64)> = None;
+                self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
+                    let ring = ring_at(id);
+                    if let Some((r, _)) = m.value(&ring, x, y, &self.lut, &self.noise) {
+                        let key = m.key(&ring, spiral);
+                        if best.is_none_or(|(k, _)| key > k) {
+                            best = Some((key, r));
+                        }
+                    }
+                });
+                best.map_or(0.0, |(_, r)| r)
+            }
+            InteractionKind::Convex => {
+                let mut found: SmallVec<[(Key, f64, f64); 24]> = SmallVec::new();
+                self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
+                    let ring = ring_at(id);
+                    if let Some((r, a)) = m.value(&ring, x, y, &self.lut, &self.noise) {
+                        found.push((m.key(&ring, spiral), r, a));
+                    }
+                });
+                found.sort_unstable_by(|p, q| p.0.cmp(&q.0));
+                found
+                    .iter()
+                    .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn adapt(&self, h: f64) -> f32 {
+        match &self.adaptation {
+            Some(a) => {
+                ((h - a.model_mean_um) * (a.target_std_um / a.model_std_um) + a.target_mean_um)
+                    as f32
+            }
+            None => h as f32,
+        }
+    }
+
+    /// A bank holding this surface's configuration, tables and adaptation
+    /// (`surftile bake --method milling`).
+    pub fn to_bank(&self, source: &str) -> Result<Bank> {
+        let header = BankHeader {
+            rule: Rule::Milling,
+            method: Method::Milling,
+            channels: 1,
+            tiles: NOISE_PROFILES,
+            tile_size: [NOISE_SAMPLES, 1],
+            lattice: [[0.0; 2]; 2],
+            triangle_edge: 0.0,
+            levels: vec![LevelInfo {
+                size: [NOISE_SAMPLES, 1],
+                mean: vec![0.0],
+                sigma: vec![0.0],
+                shift: None,
+            }],
+            spacing_um: Some(self.spacing_um()),
+            height_unit: "um".into(),
+            seed: 0,
+            lut_size: SHAPE_LUT,
+            lut_z_range: 1.0,
+            exemplar: ExemplarInfo {
+                source: source.into(),
+                width: 0,
+                height: 0,
+                mean: vec![0.0],
+                std: vec![0.0],
+                quantile_levels: Vec::new(),
+                quantiles: vec![Vec::new()],
+            },
+            bake: format!("method=milling config={source}"),
+            seam_costs: Vec::new(),
+            milling: Some(MillingBankInfo {
+                config: self.config.clone(),
+                adaptation: self.adaptation,
+            }),
+        };
+        let bank = Bank {
+            header,
+            texels: vec![self.noise.clone()],
+            luts: vec![self.lut.clone()],
+        };
+        bank.validate(source)?;
+        Ok(bank)
+    }
+
+    /// The surface a milling bank describes, with placement seed `seed` for the rings
+    /// (the noise profiles are the bank's).
+    pub fn from_bank(bank: &Bank, seed: u32) -> Result<MillingSurface> {
+        let h = &bank.header;
+        let info = h
+            .milling
+            .as_ref()
+            .ok_or_else(|| Error::bank("(milling)", "the header has no milling section"))?;
+        info.config.validate()?;
+        Self::from_parts(
+            &info.config,
+            h.spacing_um.unwrap_or(1.0),
+            seed,
+            bank.luts[0].clone(),
+            bank.texels[0].clone(),
+            info.adaptation,
+        )
+    }
+}
+
+impl Surface for MillingSurface {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    /// Full resolution for footprints up to 1 pixel; wider footprints average an n×n
+    /// grid of points inside it (n = ⌈footprint⌉, at most 4), so zoomed-out fills do not
+    /// alias the rings as badly as point samples would.
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        if !(footprint > 1.0) {
+            out[0] = self.height(x, y);
+            return;
+        }
+        let n = footprint.ceil().min(4.0) as usize;
+        let mut sum = 0.0f64;
+        for a in 0..n {
+            for b in 0..n {
+                let ox = ((a as f64 + 0.5) / n as f64 - 0.5) * footprint;
+                let oy = ((b as f64 + 0.5) / n as f64 - 0.5) * footprint;
+                sum += self.height(x + ox, y + oy) as f64;
+            }
+        }
+        out[0] = (sum / (n * n) as f64) as f32;
+    }
+
+    #[inline]
+    fn height(&self, x: f64, y: f64) -> f32 {
+        if !in_range(x, y) {
+            return f32::NAN;
+        }
+        self.adapt(self.eval_mm(x * self.mm_per_px, y * self.mm_per_px))
+    }
+}
+
+/// The brute-force twin (seed 000 §4 as written): every ring of the finite path that
+/// reaches a rectangle, sorted once into milling order, each evaluated at every point
+/// and folded by the interaction, f_k = f(f_{k−1}, R_k). O(rings) per point.
+pub struct BruteForce<'a> {
+    surface: &'a MillingSurface,
+    rings: Vec<(Key, Ring)>,
+}
+
+impl<'a> BruteForce<'a> {
+    /// The rings of `surface`'s path reaching the pixel rectangle [x0, x1] × [y0, y1].
+    pub fn new(surface: &'a MillingSurface, x0: f64, y0: f64, x1: f64, y1: f64) -> Self {
+        let s = surface.mm_per_px;
+        let m = &surface.rings;
+        let spiral = surface.path.is_spiral();
+        let mut rings: Vec<(Key, Ring)> = surface
+            .path
+            .rings_reaching((x0 * s, y0 * s, x1 * s, y1 * s), m.reach_out)
+            .into_iter()
+            .map(|id| {
+                let (id, cx, cy, dir, order) = surface.path.nominal(id);
+                let ring = m.place(id, cx, cy, dir, order);
+                (m.key(&ring, spiral), ring)
+            })
+            .collect();
+        rings.sort_by(|a, b| a.0.cmp(&b.0));
+        BruteForce { surface, rings }
+    }
+
+    /// Number of rings evaluated per point.
+    pub fn rings(&self) -> usize {
+        self.rings.len()
+    }
+
+    /// The height at pixel (x, y), which must lie in the rectangle.
+    pub fn height(&self, x: f64, y: f64) -> f32 {
+        let s = self.surface;
+        let (x, y) = (x * s.mm_per_px, y * s.mm_per_px);
+        let m = &s.rings;
+        let mut f = 0.0f64;
+        for (_, ring) in &self.rings {
+            let value = m.value(ring, x, y, &s.lut, &s.noise);
+            f = match (m.interaction, value) {
+                (InteractionKind::Min, v) => f.min(v.map_or(0.0, |v| v.0)),
+                (InteractionKind::Latest, Some((r, _))) => r,
+                (InteractionKind::Convex, Some((r, a))) => a * r + (1.0 - a) * f,
+                (_, None) => f,
+            };
+        }
+        s.adapt(f)
+    }
+}

@@ -1,0 +1,494 @@
+//! One ring of the milling model (seed 000 §4.1): its random parameters, drawn from the
+//! hash of its index, and its value R_k = S_k·T_k + N_k at a point.
+
+use std::sync::OnceLock;
+
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, Poisson};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+use super::config::{InteractionKind, MillingConfig, ShapeKind};
+use crate::hash::hash_cell;
+
+/// Angular noise profiles in a milling bank ("milling patch bank", ALGORITHMS.md §5).
+pub const NOISE_PROFILES: usize = 64;
+/// Samples per noise profile, over one turn.
+pub const NOISE_SAMPLES: usize = 2048;
+/// Entries of the radial shape table cos(π/2·D) for D ∈ [−1, 1].
+pub const SHAPE_LUT: usize = 1025;
+
+/// Truncation of every normal draw, in standard deviations: it bounds a ring's reach.
+pub const TRUNCATE_SIGMA: f64 = 4.0;
+
+const INV_CDF_BITS: u32 = 12;
+
+/// Φ⁻¹ at the midpoints of 2¹² equal bins of (0, 1), clamped to ±4 (Acklam's rational
+/// approximation, relative error < 1.2·10⁻⁹).
+fn inv_cdf_table() -> &'static [f64] {
+    static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let n = 1usize << INV_CDF_BITS;
+        (0..=n)
+            .map(|i| {
+                let p = (i as f64 + 0.5) / (n as f64 + 1.0);
+                inverse_normal_cdf(p).clamp(-TRUNCATE_SIGMA, TRUNCATE_SIGMA)
+            })
+            .collect()
+    })
+}
+
+/// Φ⁻¹(p) for p ∈ (0, 1) (P. J. Acklam's algorithm).
+pub fn inverse_normal_cdf(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383577518672690e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+/// A standard normal draw from a hash word, truncated to ±4: the inverse CDF at the
+/// word's position in (0, 1), linear between the table's 4097 entries.
+#[inline(always)]
+fn normal(word: u32) -> f64 {
+    let t = inv_cdf_table();
+    let i = (word >> (32 - INV_CDF_BITS)) as usize;
+    let f = (word & ((1 << (32 - INV_CDF_BITS)) - 1)) as f64 * (1.0 / (1u64 << 20) as f64);
+    t[i] + (t[i + 1] - t[i]) * f
+}
+
+/// A uniform draw in [0, 1) from a hash word.
+#[inline(always)]
+fn uniform(word: u32) -> f64 {
+    word as f64 * (1.0 / 4_294_967_296.0)
+}
+
+/// cos(π/2·D) at D = −1 + 2i/(SHAPE_LUT − 1): the radial profile of every shape part.
+pub fn shape_table() -> Vec<f32> {
+    (0..SHAPE_LUT)
+        .map(|i| {
+            let d = -1.0 + 2.0 * i as f64 / (SHAPE_LUT - 1) as f64;
+            (std::f64::consts::FRAC_PI_2 * d).cos() as f32
+        })
+        .collect()
+}
+
+/// The angular noise profiles (seed 000 §4.1.3): profile p is
+/// (1/λ_p)·Σ_j sin(τ_pj·φ + ξ_pj) with λ_p ~ Poisson(λ) (0 sines: a flat profile),
+/// τ_pj ~ Poisson(τ) and ξ_pj ~ U(−π, π], at `NOISE_SAMPLES` angles of one turn.
+///
+/// A ring uses profile p rotated by a uniform angle ψ: sin(τ(φ + ψ) + ξ) = sin(τφ + ξ′)
+/// with ξ′ = ξ + τψ again uniform, so each ring's noise is a draw of the paper's model
+/// whose (λ, τ) come from a pool of `NOISE_PROFILES` draws instead of fresh ones.
+///
+/// We read τ as the sines' angular frequency, as the text says ("frequencies τ"); the
+/// formula as printed multiplies the amplitude by τ instead, which sums to a single
+/// sinusoid of the angle and leaves the [−1, 1] range the text gives N_k.
+pub fn noise_profiles(count_mean: f64, frequency_mean: f64, seed: u64) -> Vec<f32> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x6E6F_6973_6570_726F);
+    let count = Poisson::new(count_mean.max(1e-9)).ok();
+    let freq = Poisson::new(frequency_mean.max(1e-9)).ok();
+    let mut out = vec![0.0f32; NOISE_PROFILES * NOISE_SAMPLES];
+    for profile in out.chunks_exact_mut(NOISE_SAMPLES) {
+        let n = count.map_or(0.0, |p| p.sample(&mut rng)) as usize;
+        let sines: Vec<(f64, f64)> = (0..n)
+            .map(|_| {
+                let tau = freq.map_or(0.0, |p| p.sample(&mut rng));
+                let xi = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                (tau, xi)
+            })
+            .collect();
+        if sines.is_empty() {
+            continue;
+        }
+        for (s, v) in profile.iter_mut().enumerate() {
+            let phi = std::f64::consts::TAU * s as f64 / NOISE_SAMPLES as f64;
+            let sum: f64 = sines.iter().map(|(t, x)| (t * phi + x).sin()).sum();
+            *v = (sum / sines.len() as f64) as f32;
+        }
+    }
+    out
+}
+
+/// atan2(y, x) / 2π in [−½, ½], to about 2·10⁻⁶ turns: a polynomial instead of the libm
+/// call, which would be a sixth of a sample's time. Used only to index the noise
+/// profiles, whose samples are 5·10⁻⁴ turns apart.
+#[inline(always)]
+pub fn atan2_turns(y: f64, x: f64) -> f64 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (lo, hi) = if ax < ay { (ax, ay) } else { (ay, ax) };
+    if hi == 0.0 {
+        return 0.0;
+    }
+    let z = lo / hi;
+    let z2 = z * z;
+    // Minimax for atan on [0, 1] (max error 1e-5 rad).
+    let mut a = z
+        * (0.999_977_26
+            + z2 * (-0.332_623_47
+                + z2 * (0.193_543_46
+                    + z2 * (-0.116_432_87 + z2 * (0.052_653_32 - 0.011_721_2 * z2)))));
+    if ay > ax {
+        a = std::f64::consts::FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = std::f64::consts::PI - a;
+    }
+    if y < 0.0 {
+        a = -a;
+    }
+    a * (1.0 / std::f64::consts::TAU)
+}
+
+/// Which part of a ring a point lies in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Part {
+    Indentation = 0,
+    Inner = 1,
+    Outer = 2,
+}
+
+/// The order in which rings were milled: (line or turn rank, position along the line,
+/// tie-break of reordered rings, ring index). Later is larger.
+pub type Key = (i64, i64, u32, i64, i64);
+
+/// The numbers of the ring sub-model, derived once from a configuration (mm, µm).
+#[derive(Clone, Debug)]
+pub struct RingModel {
+    pub(super) shape: ShapeKind,
+    pub(super) interaction: InteractionKind,
+    /// r = d/2.
+    pub(super) r: f64,
+    /// (mean, std) of w⁻, w⁺ⁱ, w⁺ᵒ in mm.
+    widths: [(f64, f64); 3],
+    /// Per part: (μ_l, σ_l, μ_h, σ_h) in µm.
+    tilt: [(f64, f64, f64, f64); 3],
+    noise_amplitude: f64,
+    front: (f64, f64),
+    rear: (f64, f64),
+    /// Cholesky factor (l00, l10, l11) of Σ_c.
+    chol: (f64, f64, f64),
+    /// No ring reaches a point farther than this from its nominal centre (mm).
+    pub(super) reach_out: f64,
+    /// No ring reaches a point nearer than this to its nominal centre (mm).
+    pub(super) reach_in: f64,
+    /// ε.
+    pub(super) reorder: f64,
+    /// How far a reordered ring moves, in rings.
+    pub(super) reorder_reach: i64,
+    seed: u32,
+}
+
+/// A ring placed: where it is, how it moves, its widths and its hash.
+#[derive(Clone, Copy, Debug)]
+pub struct Ring {
+    /// Ring index: (i, j) on a parallel path, (k, 0) on a spiral.
+    pub id: (i64, i64),
+    /// Centre after jitter, mm.
+    pub cx: f64,
+    /// Centre after jitter, mm.
+    pub cy: f64,
+    /// Motion direction θ_k.
+    pub cos_t: f64,
+    /// Motion direction θ_k.
+    pub sin_t: f64,
+    /// Nominal (rank, position) of the ring in the milling order.
+    pub order: (i64, i64),
+    w_minus: f64,
+    w_inner: f64,
+    w_outer: f64,
+    words: [u32; 4],
+}
+
+impl RingModel {
+    /// Derives the ring model of a validated configuration; `seed` is the placement seed.
+    pub fn new(c: &MillingConfig, seed: u32) -> RingModel {
+        let r = c.tool.diameter_mm / 2.0;
+        let s = &c.shape;
+        let t = &c.tilt;
+        let sin_phi = t.tilt_deg.to_radians().sin();
+        let low = t.low_mean_um.unwrap_or(t.depth_um - r * 1000.0 * sin_phi);
+        let high = t.high_mean_um.unwrap_or(t.depth_um + r * 1000.0 * sin_phi);
+        let [[a, b], [_, cc]] = c.path.jitter_cov_mm2;
+        let l00 = a.max(0.0).sqrt();
+        let l10 = if l00 > 0.0 { b / l00 } else { 0.0 };
+        let l11 = (cc - l10 * l10).max(0.0).sqrt();
+        let jitter_bound = TRUNCATE_SIGMA * (l00 * l00 + (l10.abs() + l11).powi(2)).sqrt();
+        let bump = s.kind == ShapeKind::Bump;
+        let max = |(m, sd): (f64, f64)| (m + TRUNCATE_SIGMA * sd).max(0.0);
+        let w_minus_max = max((s.width_mean_mm, s.width_std_mm)).min(r);
+        let w_inner_max = if bump {
+            max((s.inner_width_mean_mm, s.inner_width_std_mm))
+        } else {
+            0.0
+        };
+        let w_outer_max = if bump {
+            max((s.outer_width_mean_mm, s.outer_width_std_mm))
+        } else {
+            0.0
+        };
+        // A margin of 1e-9 relative keeps rounding in the search windows on the safe side.
+        let margin = 1e-9 * (1.0 + r);
+        let reach_out = r + w_outer_max + jitter_bound + margin;
+        let reach_in = (r - (w_minus_max + w_inner_max).min(r) - jitter_bound - margin).max(0.0);
+        let reorder_reach = match c.path.reorder_reach_rings {
+            0 => (2.0 * reach_out / c.path.step_mm).ceil().max(1.0) as i64,
+            m => m as i64,
+        };
+        RingModel {
+            shape: s.kind,
+            interaction: c.interaction.kind,
+            r,
+            widths: [
+                (s.width_mean_mm, s.width_std_mm),
+                (s.inner_width_mean_mm, s.inner_width_std_mm),
+                (s.outer_width_mean_mm, s.outer_width_std_mm),
+            ],
+            tilt: [
+                (low, t.low_std_um, high, t.high_std_um),
+                (
+                    t.inner_low_mean_um,
+                    t.inner_low_std_um,
+                    t.inner_high_mean_um,
+                    t.inner_high_std_um,
+                ),
+                (
+                    t.outer_low_mean_um,
+                    t.outer_low_std_um,
+                    t.outer_high_mean_um,
+                    t.outer_high_std_um,
+                ),
+            ],
+            noise_amplitude: c.noise.amplitude_um,
+            front: (
+                c.interaction.front_weight_min,
+                c.interaction.front_weight_max,
+            ),
+            rear: (c.interaction.rear_weight_min, c.interaction.rear_weight_max),
+            chol: (l00, l10, l11),
+            reach_out,
+            reach_in,
+            reorder: c.path.reorder,
+            reorder_reach,
+            seed,
+        }
+    }
+
+    /// Places ring `id` with nominal centre (x, y) (mm), motion direction (cos θ, sin θ)
+    /// and nominal order: the jitter and widths come from stream 0 and 1 of its hash.
+    #[inline(always)]
+    pub fn place(
+        &self,
+        id: (i64, i64),
+        x: f64,
+        y: f64,
+        dir: (f64, f64),
+        order: (i64, i64),
+    ) -> Ring {
+        let h0 = hash_cell(self.seed, id.0, id.1, 0);
+        let h1 = hash_cell(self.seed, id.0, id.1, 1);
+        let (z1, z2) = (normal(h0[0]), normal(h0[1]));
+        let (l00, l10, l11) = self.chol;
+        let r = self.r;
+        let draw = |k: usize, w: u32| (self.widths[k].0 + self.widths[k].1 * normal(w)).max(0.0);
+        let w_minus = draw(0, h0[2]).min(r);
+        let (w_inner, w_outer) = if self.shape == ShapeKind::Bump {
+            (draw(1, h0[3]).min(r - w_minus), draw(2, h1[0]))
+        } else {
+            (0.0, 0.0)
+        };
+        Ring {
+            id,
+            cx: x + l00 * z1,
+            cy: y + l10 * z1 + l11 * z2,
+            cos_t: dir.0,
+            sin_t: dir.1,
+            order,
+            w_minus,
+            w_inner,
+            w_outer,
+            words: h1,
+        }
+    }
+
+    /// The ring's place in the milling order after the ε reordering: with probability
+    /// ε (word 1 of stream 1) the ring moves by a hashed 1 to m rings forwards or
+    /// backwards along its line (parallel: position) or spiral (rank).
+    #[inline(always)]
+    pub fn key(&self, ring: &Ring, spiral: bool) -> Key {
+        let (mut rank, mut pos) = ring.order;
+        let mut tie = 0;
+        if self.reorder > 0.0 && uniform(ring.words[1]) < self.reorder {
+            let h = hash_cell(self.seed, ring.id.0, ring.id.1, 5);
+            let m = self.reorder_reach;
+            let step = (h[0] as u64 % (2 * m as u64)) as i64 - m;
+            let step = if step >= 0 { step + 1 } else { step };
+            if spiral {
+                rank = rank.saturating_add(step);
+            } else {
+                pos = pos.saturating_add(step);
+            }
+            tie = h[1] | 1;
+        }
+        (rank, pos, tie, ring.id.0, ring.id.1)
+    }
+
+    /// R_k(x, y) = S_k·T_k + N_k and the convex weight A_k, or None outside the ring's
+    /// support P_k (seed 000 §4.1, eq. 1, §4.2).
+    #[inline(always)]
+    pub fn value(
+        &self,
+        ring: &Ring,
+        x: f64,
+        y: f64,
+        lut: &[f32],
+        noise: &[f32],
+    ) -> Option<(f64, f64)> {
+        let (dx, dy) = (x - ring.cx, y - ring.cy);
+        let dist = (dx * dx + dy * dy).sqrt();
+        let r = self.r;
+        let edge = r - ring.w_minus;
+        // Closed parts, tried in the order indentation, inner, outer (their common
+        // borders have S = 0 in every part but the indicator's indentation).
+        let (part, centre, width) = if dist >= edge && dist <= r && ring.w_minus > 0.0 {
+            (Part::Indentation, r - 0.5 * ring.w_minus, ring.w_minus)
+        } else if ring.w_inner > 0.0 && dist < edge && dist >= edge - ring.w_inner {
+            (Part::Inner, edge - 0.5 * ring.w_inner, ring.w_inner)
+        } else if ring.w_outer > 0.0 && dist > r && dist <= r + ring.w_outer {
+            (Part::Outer, r + 0.5 * ring.w_outer, ring.w_outer)
+        } else {
+            return None;
+        };
+        let s = match (self.shape, part) {
+            (ShapeKind::Indicator, _) => -1.0,
+            (_, p) => {
+                // D = (dist − centre)·2/w ∈ [−1, 1]; cos(π/2·D) from the table.
+                let d = ((dist - centre) * 2.0 / width).clamp(-1.0, 1.0);
+                let pos = (d + 1.0) * (0.5 * (SHAPE_LUT - 1) as f64);
+                let i = (pos as usize).min(SHAPE_LUT - 2);
+                let f = pos - i as f64;
+                let c = lut[i] as f64 + (lut[i + 1] as f64 - lut[i] as f64) * f;
+                if p == Part::Indentation { -c } else { c }
+            }
+        };
+        // Eq. (1): the plane through the lowest (rear) and highest (front) scaling.
+        let along = (ring.cos_t * dx + ring.sin_t * dy) * (0.5 / r);
+        let h = hash_cell(self.seed, ring.id.0, ring.id.1, 2 + part as u32);
+        let (ml, sl, mh, sh) = self.tilt[part as usize];
+        let (low, high) = (ml + sl * normal(h[0]), mh + sh * normal(h[1]));
+        let plane = (high - low) * along + 0.5 * (high + low);
+        let mut v = s * plane;
+        if self.noise_amplitude > 0.0 {
+            let w = ring.words[2];
+            let profile = (w as usize >> 16) % NOISE_PROFILES;
+            let turn = atan2_turns(dy, dx) + (w & 0xFFFF) as f64 * (1.0 / 65536.0);
+            let pos = (turn - turn.floor()) * NOISE_SAMPLES as f64;
+            let i = (pos as usize).min(NOISE_SAMPLES - 1);
+            let f = pos - i as f64;
+            let row = &noise[profile * NOISE_SAMPLES..(profile + 1) * NOISE_SAMPLES];
+            let (a, b) = (row[i] as f64, row[(i + 1) % NOISE_SAMPLES] as f64);
+            v += self.noise_amplitude * (a + (b - a) * f);
+        }
+        let weight = if self.interaction == InteractionKind::Convex {
+            // A_k: eq. (1) with a_k at the front and b_k at the rear (Table 3's names).
+            let w = ring.words[3];
+            let a = self.front.0 + (self.front.1 - self.front.0) * uniform(w << 16);
+            let b = self.rear.0 + (self.rear.1 - self.rear.0) * uniform(w & 0xFFFF_0000);
+            ((a - b) * along + 0.5 * (a + b)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        Some((v, weight))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverse_normal_cdf_known_answers() {
+        // Φ⁻¹ at textbook quantiles.
+        for (p, z) in [
+            (0.5, 0.0),
+            (0.975, 1.959_963_984_540_054),
+            (0.841_344_746_068_543, 1.0),
+            (0.001, -3.090_232_306_167_813),
+            (1e-6, -4.753_424_308_822_899),
+        ] {
+            assert!((inverse_normal_cdf(p) - z).abs() < 1e-8, "Φ⁻¹({p})");
+        }
+    }
+
+    #[test]
+    fn hashed_normals_have_unit_variance_and_are_truncated() {
+        let n = 200_000u32;
+        let zs: Vec<f64> = (0..n)
+            .map(|i| normal(hash_cell(3, i as i64, 0, 0)[0]))
+            .collect();
+        let mean = zs.iter().sum::<f64>() / n as f64;
+        let var = zs.iter().map(|z| (z - mean).powi(2)).sum::<f64>() / n as f64;
+        assert!(mean.abs() < 0.01, "mean {mean}");
+        assert!((var - 1.0).abs() < 0.02, "variance {var}");
+        assert!(zs.iter().all(|z| z.abs() <= TRUNCATE_SIGMA));
+    }
+
+    #[test]
+    fn fast_atan2_agrees_with_libm() {
+        for k in 0..10_000 {
+            let a = k as f64 * 0.000_628_3 - 3.14159;
+            let (y, x) = (a.sin() * 3.7, a.cos() * 3.7);
+            let want = y.atan2(x) / std::f64::consts::TAU;
+            assert!((atan2_turns(y, x) - want).abs() < 3e-6, "angle {a}");
+        }
+        assert_eq!(atan2_turns(0.0, 0.0), 0.0);
+    }
+
+    /// The profiles are the sum of sines they claim to be, within the table's
+    /// interpolation error.
+    #[test]
+    fn noise_profiles_are_bounded_and_not_flat() {
+        let p = noise_profiles(50.0, 50.0, 1);
+        assert!(p.iter().all(|v| v.abs() <= 1.0));
+        let rms = (p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>() / p.len() as f64).sqrt();
+        // Mean of λ sines of random phase: rms ≈ 1/√(2λ) = 0.1.
+        assert!((0.07..0.14).contains(&rms), "rms {rms}");
+    }
+}

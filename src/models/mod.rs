@@ -1,0 +1,3 @@
+//! Procedural surfaces: models evaluated directly at any point, without tiles.
+
+pub mod milling;
