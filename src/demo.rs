@@ -5,6 +5,8 @@
 //! view, and the quality figures of the synthesis against the exemplar. Then the roller
 //! (seed 003) on a near-regular one: the ridged X3P profile `tiles/x3p-2-crop.npy`,
 //! baked into 4 double toroidal tiles on its detected lattice and rendered at 1024².
+//! Last, face milling (seed 000 §4) from the bundled presets: a parallel path in the
+//! paper's Fig. 25 field and a spiral around its origin.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -13,6 +15,7 @@ use crate::bake::Baker;
 use crate::bank::Method;
 use crate::error::{Error, Result};
 use crate::io::{Format, ReadOptions, read_image_bytes, write_atomically, write_heights};
+use crate::models::milling::{MillingConfig, MillingSurface};
 use crate::render::{render_region, render_to_file};
 use crate::stats::compare;
 use crate::stream::{BlendSurface, Region, ToroidalSurface};
@@ -165,6 +168,54 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     )?;
     step(
         "roller height, 1024×1024 at the origin (16-bit PNG)",
+        path,
+        t,
+    );
+
+    // Face milling (seed 000 §4) from the bundled presets: no exemplar at all.
+    let t = Instant::now();
+    let (config, _) = MillingConfig::load("parallel-d4-ae05".as_ref())?;
+    let parallel = MillingSurface::new(&config, 6.1, 0)?;
+    let bank_path = dir.join("milling-parallel.bank");
+    parallel.to_bank("parallel-d4-ae05")?.write(&bank_path)?;
+    step(
+        "bake: milling bank, preset parallel-d4-ae05 (4 mm head, a_e = 0.5)",
+        bank_path,
+        t,
+    );
+    // The paper's Fig. 25 field: 820² pixels of 6.1 µm, 5 × 5 mm.
+    let field = Region::new(0.0, 0.0, 820, 820);
+    for (what, name, shade) in [
+        (
+            "milling height, parallel path, 820×820 at 6.1 µm (16-bit PNG)",
+            "milling-parallel.png",
+            false,
+        ),
+        (
+            "milling, parallel path, shaded (8-bit PNG)",
+            "milling-parallel-shaded.png",
+            true,
+        ),
+    ] {
+        let t = Instant::now();
+        let path = dir.join(name);
+        render_to_file(&parallel, &field, &path, shade, Some(6.1), &mut |_| {})?;
+        step(what, path, t);
+    }
+    let t = Instant::now();
+    let (config, _) = MillingConfig::load("spiral-d4-ae05".as_ref())?;
+    let spiral = MillingSurface::new(&config, 16.0, 0)?;
+    let path = dir.join("milling-spiral-shaded.png");
+    render_to_file(
+        &spiral,
+        &Region::new(-256.0, -256.0, 512, 512),
+        &path,
+        true,
+        Some(16.0),
+        &mut |_| {},
+    )?;
+    step(
+        "milling, spiral path around its origin, 512×512 at 16 µm, shaded (8-bit PNG)",
         path,
         t,
     );

@@ -296,6 +296,10 @@ fn demo_writes_the_gallery() {
         "x3p-2-roller.bank",
         "roller-exemplar.png",
         "roller-height.png",
+        "milling-parallel.bank",
+        "milling-parallel.png",
+        "milling-parallel-shaded.png",
+        "milling-spiral-shaded.png",
     ] {
         let p = dir.path().join("surftile-demo").join(f);
         assert!(
@@ -309,6 +313,139 @@ fn demo_writes_the_gallery() {
     )
     .unwrap();
     assert!(stats["w1"].as_f64().unwrap() < 0.05, "{stats}");
+}
+
+/// `surftile mill` renders a preset; `bake --method milling` writes a bank that
+/// `render` and `info` read; bad configurations and flags give one line and no file.
+#[test]
+fn mill_and_milling_banks_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = surftile(
+        dir.path(),
+        &[
+            "mill",
+            "spiral-d8-ae02",
+            "--x",
+            "-64",
+            "--y",
+            "-64",
+            "--w",
+            "128",
+            "--h",
+            "96",
+            "--spacing",
+            "20",
+            "--out",
+            "s.npy",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let npy = std::fs::read(dir.path().join("s.npy")).unwrap();
+    assert!(npy.len() > 128 * 96 * 4);
+    let r = surftile(
+        dir.path(),
+        &[
+            "bake",
+            "parallel-d4-ae08",
+            "--method",
+            "milling",
+            "--spacing",
+            "6.1",
+            "--out",
+            "m.bank",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = surftile(dir.path(), &["info", "m.bank"]);
+    assert!(
+        r.stdout.contains("milling: Parallel path, d = 4 mm"),
+        "{}",
+        r.stdout
+    );
+    let r = surftile(
+        dir.path(),
+        &[
+            "render", "m.bank", "--x", "0", "--y", "0", "--w", "64", "--h", "64", "--out", "m.png",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    std::fs::write(dir.path().join("bad.toml"), "[path]\noverlap = 1.2\n").unwrap();
+    for (args, expect) in [
+        (
+            vec![
+                "mill",
+                "bad.toml",
+                "--x",
+                "0",
+                "--y",
+                "0",
+                "--w",
+                "8",
+                "--h",
+                "8",
+                "--spacing",
+                "5",
+                "--out",
+                "b.png",
+            ],
+            "path.overlap",
+        ),
+        (
+            vec![
+                "mill",
+                "no-such-preset",
+                "--x",
+                "0",
+                "--y",
+                "0",
+                "--w",
+                "8",
+                "--h",
+                "8",
+                "--spacing",
+                "5",
+                "--out",
+                "b.png",
+            ],
+            "preset name",
+        ),
+        (
+            vec![
+                "mill",
+                "parallel-d4-ae05",
+                "--x",
+                "0",
+                "--y",
+                "0",
+                "--w",
+                "8",
+                "--h",
+                "8",
+                "--spacing",
+                "-5",
+                "--out",
+                "b.png",
+            ],
+            "spacing",
+        ),
+        (
+            vec![
+                "bake",
+                "parallel-d4-ae05",
+                "--method",
+                "milling",
+                "--out",
+                "b.bank",
+            ],
+            "spacing",
+        ),
+    ] {
+        let r = surftile(dir.path(), &args);
+        assert_ne!(r.code, 0, "{args:?}");
+        assert!(r.stderr.contains(expect), "{args:?}: {}", r.stderr);
+        assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    }
+    assert!(!dir.path().join("b.png").exists() && !dir.path().join("b.bank").exists());
 }
 
 /// Issue 3's bad roller input: `--tiles 0`, a collinear `--lattice`, and a tile plus

@@ -351,7 +351,7 @@ impl Bank {
         if self.texels[0]
             .iter()
             .chain(&self.luts[0])
-            .any(|v| !(v.abs() <= 1.0))
+            .any(|v| v.is_nan() || v.abs() > 1.0)
         {
             return bad("milling tables hold values outside [−1, 1]".into());
         }

@@ -46,8 +46,9 @@ use crate::error::{Error, Result};
 use crate::stream::{Surface, in_range};
 use config::InteractionKind;
 pub use config::MillingConfig;
+use path::Nominal;
 pub use path::ToolPath;
-use ring::{Key, NOISE_PROFILES, NOISE_SAMPLES, Ring, RingModel, SHAPE_LUT};
+use ring::{Key, NOISE_PROFILES, NOISE_SAMPLES, RingModel, SHAPE_LUT};
 
 /// The height adaptation of seed 000 §4.4: heights are mapped by
 /// h′ = (h − model_mean)·target_std/model_std + target_mean.
@@ -235,42 +236,28 @@ impl MillingSurface {
     pub fn eval_mm(&self, x: f64, y: f64) -> f64 {
         let m = &self.rings;
         let spiral = self.path.is_spiral();
-        let ring_at = |id| {
-            let (id, cx, cy, dir, order) = self.path.nominal(id);
-            m.place(id, cx, cy, dir, order)
-        };
+        // Stage 1 for every candidate, without branches, so the hash chains of all of
+        // them overlap; stage 2 only for the few whose support can contain the point.
+        let mut near: SmallVec<[(Nominal, ring::Near); 32]> = SmallVec::new();
+        self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
+            let ring = self.path.nominal(id);
+            near.push((ring, m.near(&ring, x, y)));
+        });
+        let covering = near
+            .iter()
+            .filter(|(_, n)| m.may_cover(n))
+            .filter_map(|(ring, n)| Some((ring, m.finish(ring, n, &self.lut, &self.noise)?)));
         match m.interaction {
-            InteractionKind::Min => {
-                let mut v = 0.0f64;
-                self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
-                    if let Some((r, _)) = m.value(&ring_at(id), x, y, &self.lut, &self.noise) {
-                        v = v.min(r);
-                    }
-                });
-                v
-            }
-            InteractionKind::Latest => {
-                let mut best: Option<(Key, f64)> = None;
-                self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
-                    let ring = ring_at(id);
-                    if let Some((r, _)) = m.value(&ring, x, y, &self.lut, &self.noise) {
-                        let key = m.key(&ring, spiral);
-                        if best.is_none_or(|(k, _)| key > k) {
-                            best = Some((key, r));
-                        }
-                    }
-                });
-                best.map_or(0.0, |(_, r)| r)
-            }
+            InteractionKind::Min => covering.fold(0.0f64, |v, (_, (r, _))| v.min(r)),
+            InteractionKind::Latest => covering
+                .map(|(ring, (r, _))| (m.key(ring, spiral), r))
+                .max_by(|a, b| a.0.cmp(&b.0))
+                .map_or(0.0, |(_, r)| r),
             InteractionKind::Convex => {
-                let mut found: SmallVec<[(Key, f64, f64); 24]> = SmallVec::new();
-                self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
-                    let ring = ring_at(id);
-                    if let Some((r, a)) = m.value(&ring, x, y, &self.lut, &self.noise) {
-                        found.push((m.key(&ring, spiral), r, a));
-                    }
-                });
-                found.sort_unstable_by(|p, q| p.0.cmp(&q.0));
+                let mut found: SmallVec<[(Key, f64, f64); 24]> = covering
+                    .map(|(ring, (r, a))| (m.key(ring, spiral), r, a))
+                    .collect();
+                found.sort_unstable_by_key(|p| p.0);
                 found
                     .iter()
                     .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
@@ -365,7 +352,7 @@ impl Surface for MillingSurface {
     /// grid of points inside it (n = ⌈footprint⌉, at most 4), so zoomed-out fills do not
     /// alias the rings as badly as point samples would.
     fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
-        if !(footprint > 1.0) {
+        if footprint.is_nan() || footprint <= 1.0 {
             out[0] = self.height(x, y);
             return;
         }
@@ -395,7 +382,7 @@ impl Surface for MillingSurface {
 /// and folded by the interaction, f_k = f(f_{k−1}, R_k). O(rings) per point.
 pub struct BruteForce<'a> {
     surface: &'a MillingSurface,
-    rings: Vec<(Key, Ring)>,
+    rings: Vec<(Key, Nominal)>,
 }
 
 impl<'a> BruteForce<'a> {
@@ -404,17 +391,16 @@ impl<'a> BruteForce<'a> {
         let s = surface.mm_per_px;
         let m = &surface.rings;
         let spiral = surface.path.is_spiral();
-        let mut rings: Vec<(Key, Ring)> = surface
+        let mut rings: Vec<(Key, Nominal)> = surface
             .path
             .rings_reaching((x0 * s, y0 * s, x1 * s, y1 * s), m.reach_out)
             .into_iter()
             .map(|id| {
-                let (id, cx, cy, dir, order) = surface.path.nominal(id);
-                let ring = m.place(id, cx, cy, dir, order);
+                let ring = surface.path.nominal(id);
                 (m.key(&ring, spiral), ring)
             })
             .collect();
-        rings.sort_by(|a, b| a.0.cmp(&b.0));
+        rings.sort_by_key(|a| a.0);
         BruteForce { surface, rings }
     }
 

@@ -8,6 +8,7 @@ use rand_distr::{Distribution, Poisson};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 use super::config::{InteractionKind, MillingConfig, ShapeKind};
+use super::path::Nominal;
 use crate::hash::hash_cell;
 
 /// Angular noise profiles in a milling bank ("milling patch bank", ALGORITHMS.md §5).
@@ -20,20 +21,23 @@ pub const SHAPE_LUT: usize = 1025;
 /// Truncation of every normal draw, in standard deviations: it bounds a ring's reach.
 pub const TRUNCATE_SIGMA: f64 = 4.0;
 
-const INV_CDF_BITS: u32 = 12;
+/// Entries of the inverse normal CDF table, less one.
+const INV_CDF: usize = 4096;
 
-/// Φ⁻¹ at the midpoints of 2¹² equal bins of (0, 1), clamped to ±4 (Acklam's rational
-/// approximation, relative error < 1.2·10⁻⁹).
-fn inv_cdf_table() -> &'static [f64] {
-    static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
+/// Φ⁻¹(i/4096) for i = 0..=4096, clamped to ±4 (Acklam's rational approximation,
+/// relative error < 1.2·10⁻⁹).
+fn inv_cdf_table() -> &'static [f64; INV_CDF + 1] {
+    static TABLE: OnceLock<Box<[f64; INV_CDF + 1]>> = OnceLock::new();
     TABLE.get_or_init(|| {
-        let n = 1usize << INV_CDF_BITS;
-        (0..=n)
-            .map(|i| {
-                let p = (i as f64 + 0.5) / (n as f64 + 1.0);
-                inverse_normal_cdf(p).clamp(-TRUNCATE_SIGMA, TRUNCATE_SIGMA)
-            })
-            .collect()
+        let mut t = Box::new([0.0; INV_CDF + 1]);
+        for (i, v) in t.iter_mut().enumerate() {
+            *v = if i == 0 || i == INV_CDF {
+                TRUNCATE_SIGMA * if i == 0 { -1.0 } else { 1.0 }
+            } else {
+                inverse_normal_cdf(i as f64 / INV_CDF as f64).clamp(-TRUNCATE_SIGMA, TRUNCATE_SIGMA)
+            };
+        }
+        t
     })
 }
 
@@ -43,7 +47,7 @@ pub fn inverse_normal_cdf(p: f64) -> f64 {
         -3.969683028665376e1,
         2.209460984245205e2,
         -2.759285104469687e2,
-        1.383577518672690e2,
+        1.383_577_518_672_69e2,
         -3.066479806614716e1,
         2.506628277459239,
     ];
@@ -84,20 +88,26 @@ pub fn inverse_normal_cdf(p: f64) -> f64 {
     }
 }
 
-/// A standard normal draw from a hash word, truncated to ±4: the inverse CDF at the
-/// word's position in (0, 1), linear between the table's 4097 entries.
+/// A standard normal draw from 16 hash bits, truncated to ±4: Φ⁻¹ at the bits'
+/// position in (0, 1), linear between the table's entries (the top 12 bits pick the
+/// entry, the low 4 the point between it and the next).
 #[inline(always)]
-fn normal(word: u32) -> f64 {
-    let t = inv_cdf_table();
-    let i = (word >> (32 - INV_CDF_BITS)) as usize;
-    let f = (word & ((1 << (32 - INV_CDF_BITS)) - 1)) as f64 * (1.0 / (1u64 << 20) as f64);
-    t[i] + (t[i + 1] - t[i]) * f
+fn normal(table: &[f64; INV_CDF + 1], bits: u32) -> f64 {
+    let i = ((bits >> 4) & 0xFFF) as usize;
+    let f = ((bits & 15) as f64 + 0.5) * (1.0 / 16.0);
+    table[i] + (table[i + 1] - table[i]) * f
 }
 
 /// A uniform draw in [0, 1) from a hash word.
 #[inline(always)]
 fn uniform(word: u32) -> f64 {
     word as f64 * (1.0 / 4_294_967_296.0)
+}
+
+/// A uniform draw in (0, 1) from 16 hash bits.
+#[inline(always)]
+fn uniform16(bits: u32) -> f64 {
+    ((bits & 0xFFFF) as f64 + 0.5) * (1.0 / 65536.0)
 }
 
 /// cos(π/2·D) at D = −1 + 2i/(SHAPE_LUT − 1): the radial profile of every shape part.
@@ -185,6 +195,16 @@ enum Part {
     Outer = 2,
 }
 
+/// A ring's first stage at a point: its hash (stream 0), the point's offset from the
+/// jittered centre and the squared distance (mm, mm²).
+#[derive(Clone, Copy, Debug)]
+pub struct Near {
+    h: [u32; 4],
+    dx: f64,
+    dy: f64,
+    dist2: f64,
+}
+
 /// The order in which rings were milled: (line or turn rank, position along the line,
 /// tie-break of reordered rings, ring index). Later is larger.
 pub type Key = (i64, i64, u32, i64, i64);
@@ -213,28 +233,9 @@ pub struct RingModel {
     pub(super) reorder: f64,
     /// How far a reordered ring moves, in rings.
     pub(super) reorder_reach: i64,
+    /// Squared distances from a jittered centre outside which no ring has support (mm²).
+    support2: (f64, f64),
     seed: u32,
-}
-
-/// A ring placed: where it is, how it moves, its widths and its hash.
-#[derive(Clone, Copy, Debug)]
-pub struct Ring {
-    /// Ring index: (i, j) on a parallel path, (k, 0) on a spiral.
-    pub id: (i64, i64),
-    /// Centre after jitter, mm.
-    pub cx: f64,
-    /// Centre after jitter, mm.
-    pub cy: f64,
-    /// Motion direction θ_k.
-    pub cos_t: f64,
-    /// Motion direction θ_k.
-    pub sin_t: f64,
-    /// Nominal (rank, position) of the ring in the milling order.
-    pub order: (i64, i64),
-    w_minus: f64,
-    w_inner: f64,
-    w_outer: f64,
-    words: [u32; 4],
 }
 
 impl RingModel {
@@ -307,94 +308,121 @@ impl RingModel {
             reach_in,
             reorder: c.path.reorder,
             reorder_reach,
+            support2: (
+                ((r - (w_minus_max + w_inner_max).min(r)) * (1.0 - 1e-12)).powi(2),
+                ((r + w_outer_max) * (1.0 + 1e-12)).powi(2),
+            ),
             seed,
         }
     }
 
-    /// Places ring `id` with nominal centre (x, y) (mm), motion direction (cos θ, sin θ)
-    /// and nominal order: the jitter and widths come from stream 0 and 1 of its hash.
-    #[inline(always)]
-    pub fn place(
-        &self,
-        id: (i64, i64),
-        x: f64,
-        y: f64,
-        dir: (f64, f64),
-        order: (i64, i64),
-    ) -> Ring {
-        let h0 = hash_cell(self.seed, id.0, id.1, 0);
-        let h1 = hash_cell(self.seed, id.0, id.1, 1);
-        let (z1, z2) = (normal(h0[0]), normal(h0[1]));
-        let (l00, l10, l11) = self.chol;
-        let r = self.r;
-        let draw = |k: usize, w: u32| (self.widths[k].0 + self.widths[k].1 * normal(w)).max(0.0);
-        let w_minus = draw(0, h0[2]).min(r);
-        let (w_inner, w_outer) = if self.shape == ShapeKind::Bump {
-            (draw(1, h0[3]).min(r - w_minus), draw(2, h1[0]))
-        } else {
-            (0.0, 0.0)
-        };
-        Ring {
-            id,
-            cx: x + l00 * z1,
-            cy: y + l10 * z1 + l11 * z2,
-            cos_t: dir.0,
-            sin_t: dir.1,
-            order,
-            w_minus,
-            w_inner,
-            w_outer,
-            words: h1,
-        }
-    }
-
     /// The ring's place in the milling order after the ε reordering: with probability
-    /// ε (word 1 of stream 1) the ring moves by a hashed 1 to m rings forwards or
+    /// ε (its hash, stream 4) the ring moves by a hashed 1 to m rings forwards or
     /// backwards along its line (parallel: position) or spiral (rank).
     #[inline(always)]
-    pub fn key(&self, ring: &Ring, spiral: bool) -> Key {
-        let (mut rank, mut pos) = ring.order;
+    pub fn key(&self, ring: &Nominal, spiral: bool) -> Key {
+        let (id, _, _, _, (mut rank, mut pos)) = *ring;
         let mut tie = 0;
-        if self.reorder > 0.0 && uniform(ring.words[1]) < self.reorder {
-            let h = hash_cell(self.seed, ring.id.0, ring.id.1, 5);
-            let m = self.reorder_reach;
-            let step = (h[0] as u64 % (2 * m as u64)) as i64 - m;
-            let step = if step >= 0 { step + 1 } else { step };
-            if spiral {
-                rank = rank.saturating_add(step);
-            } else {
-                pos = pos.saturating_add(step);
+        if self.reorder > 0.0 {
+            let h = hash_cell(self.seed, id.0, id.1, 4);
+            if uniform(h[0]) < self.reorder {
+                let m = self.reorder_reach;
+                let step = (h[1] as u64 % (2 * m as u64)) as i64 - m;
+                let step = if step >= 0 { step + 1 } else { step };
+                if spiral {
+                    rank = rank.saturating_add(step);
+                } else {
+                    pos = pos.saturating_add(step);
+                }
+                tie = h[2] | 1;
             }
-            tie = h[1] | 1;
         }
-        (rank, pos, tie, ring.id.0, ring.id.1)
+        (rank, pos, tie, id.0, id.1)
     }
 
-    /// R_k(x, y) = S_k·T_k + N_k and the convex weight A_k, or None outside the ring's
-    /// support P_k (seed 000 §4.1, eq. 1, §4.2).
+    /// R_k(x, y) = S_k·T_k + N_k and the convex weight A_k of the ring with nominal
+    /// placement `ring`, or None outside its support P_k (seed 000 §4.1, eq. 1, §4.2).
+    ///
+    /// The ring's random numbers come from its hash, drawn only as far as the point
+    /// needs them. Stream 0 gives 8 draws of 16 bits: the jitter (z₁, z₂), the widths
+    /// w⁻, w⁺ⁱ, w⁺ᵒ, the noise profile and rotation, and the convex weights a_k, b_k;
+    /// stream 1 + part gives the tilting plane (l, h) of the part the point lies in.
     #[inline(always)]
     pub fn value(
         &self,
-        ring: &Ring,
+        ring: &Nominal,
         x: f64,
         y: f64,
         lut: &[f32],
         noise: &[f32],
     ) -> Option<(f64, f64)> {
-        let (dx, dy) = (x - ring.cx, y - ring.cy);
-        let dist = (dx * dx + dy * dy).sqrt();
+        let near = self.near(ring, x, y);
+        if !self.may_cover(&near) {
+            return None;
+        }
+        self.finish(ring, &near, lut, noise)
+    }
+
+    /// First stage of [`Self::value`], free of branches: the ring's hash, the offset of
+    /// the point from its jittered centre, and the squared distance.
+    #[inline(always)]
+    pub fn near(&self, ring: &Nominal, x: f64, y: f64) -> Near {
+        let (id, nx, ny, _, _) = *ring;
+        let t = inv_cdf_table();
+        let h = hash_cell(self.seed, id.0, id.1, 0);
+        let (z1, z2) = (normal(t, h[0]), normal(t, h[0] >> 16));
+        let (l00, l10, l11) = self.chol;
+        let (dx, dy) = (x - (nx + l00 * z1), y - (ny + l10 * z1 + l11 * z2));
+        Near {
+            h,
+            dx,
+            dy,
+            dist2: dx * dx + dy * dy,
+        }
+    }
+
+    /// False when the point is outside every support the ring can have.
+    #[inline(always)]
+    pub fn may_cover(&self, near: &Near) -> bool {
+        near.dist2 >= self.support2.0 && near.dist2 <= self.support2.1
+    }
+
+    /// Second stage of [`Self::value`], for a point that [`Self::may_cover`] passed.
+    #[inline(always)]
+    pub fn finish(
+        &self,
+        ring: &Nominal,
+        near: &Near,
+        lut: &[f32],
+        noise: &[f32],
+    ) -> Option<(f64, f64)> {
+        let (id, _, _, (cos_t, sin_t), _) = *ring;
+        let t = inv_cdf_table();
+        let Near { h, dx, dy, dist2 } = *near;
+        let dist = dist2.sqrt();
         let r = self.r;
-        let edge = r - ring.w_minus;
+        let draw =
+            |k: usize, bits: u32| (self.widths[k].0 + self.widths[k].1 * normal(t, bits)).max(0.0);
+        let w_minus = draw(0, h[1]).min(r);
+        let edge = r - w_minus;
         // Closed parts, tried in the order indentation, inner, outer (their common
         // borders have S = 0 in every part but the indicator's indentation).
-        let (part, centre, width) = if dist >= edge && dist <= r && ring.w_minus > 0.0 {
-            (Part::Indentation, r - 0.5 * ring.w_minus, ring.w_minus)
-        } else if ring.w_inner > 0.0 && dist < edge && dist >= edge - ring.w_inner {
-            (Part::Inner, edge - 0.5 * ring.w_inner, ring.w_inner)
-        } else if ring.w_outer > 0.0 && dist > r && dist <= r + ring.w_outer {
-            (Part::Outer, r + 0.5 * ring.w_outer, ring.w_outer)
-        } else {
+        let (part, centre, width) = if dist >= edge && dist <= r && w_minus > 0.0 {
+            (Part::Indentation, r - 0.5 * w_minus, w_minus)
+        } else if self.shape != ShapeKind::Bump {
             return None;
+        } else if dist < edge {
+            let w = draw(1, h[1] >> 16).min(edge);
+            if !(w > 0.0 && dist >= edge - w) {
+                return None;
+            }
+            (Part::Inner, edge - 0.5 * w, w)
+        } else {
+            let w = draw(2, h[2]);
+            if !(w > 0.0 && dist > r && dist <= r + w) {
+                return None;
+            }
+            (Part::Outer, r + 0.5 * w, w)
         };
         let s = match (self.shape, part) {
             (ShapeKind::Indicator, _) => -1.0,
@@ -409,16 +437,16 @@ impl RingModel {
             }
         };
         // Eq. (1): the plane through the lowest (rear) and highest (front) scaling.
-        let along = (ring.cos_t * dx + ring.sin_t * dy) * (0.5 / r);
-        let h = hash_cell(self.seed, ring.id.0, ring.id.1, 2 + part as u32);
+        let along = (cos_t * dx + sin_t * dy) * (0.5 / r);
+        let hp = hash_cell(self.seed, id.0, id.1, 1 + part as u32)[0];
         let (ml, sl, mh, sh) = self.tilt[part as usize];
-        let (low, high) = (ml + sl * normal(h[0]), mh + sh * normal(h[1]));
+        let (low, high) = (ml + sl * normal(t, hp), mh + sh * normal(t, hp >> 16));
         let plane = (high - low) * along + 0.5 * (high + low);
         let mut v = s * plane;
         if self.noise_amplitude > 0.0 {
-            let w = ring.words[2];
-            let profile = (w as usize >> 16) % NOISE_PROFILES;
-            let turn = atan2_turns(dy, dx) + (w & 0xFFFF) as f64 * (1.0 / 65536.0);
+            let w = h[2] >> 16;
+            let profile = (w as usize >> 10) % NOISE_PROFILES;
+            let turn = atan2_turns(dy, dx) + (w & 0x3FF) as f64 * (1.0 / 1024.0);
             let pos = (turn - turn.floor()) * NOISE_SAMPLES as f64;
             let i = (pos as usize).min(NOISE_SAMPLES - 1);
             let f = pos - i as f64;
@@ -428,9 +456,8 @@ impl RingModel {
         }
         let weight = if self.interaction == InteractionKind::Convex {
             // A_k: eq. (1) with a_k at the front and b_k at the rear (Table 3's names).
-            let w = ring.words[3];
-            let a = self.front.0 + (self.front.1 - self.front.0) * uniform(w << 16);
-            let b = self.rear.0 + (self.rear.1 - self.rear.0) * uniform(w & 0xFFFF_0000);
+            let a = self.front.0 + (self.front.1 - self.front.0) * uniform16(h[3]);
+            let b = self.rear.0 + (self.rear.1 - self.rear.0) * uniform16(h[3] >> 16);
             ((a - b) * along + 0.5 * (a + b)).clamp(0.0, 1.0)
         } else {
             1.0
@@ -460,8 +487,9 @@ mod tests {
     #[test]
     fn hashed_normals_have_unit_variance_and_are_truncated() {
         let n = 200_000u32;
+        let t = inv_cdf_table();
         let zs: Vec<f64> = (0..n)
-            .map(|i| normal(hash_cell(3, i as i64, 0, 0)[0]))
+            .map(|i| normal(t, hash_cell(3, i as i64, 0, 0)[0]))
             .collect();
         let mean = zs.iter().sum::<f64>() / n as f64;
         let var = zs.iter().map(|z| (z - mean).powi(2)).sum::<f64>() / n as f64;
@@ -473,7 +501,7 @@ mod tests {
     #[test]
     fn fast_atan2_agrees_with_libm() {
         for k in 0..10_000 {
-            let a = k as f64 * 0.000_628_3 - 3.14159;
+            let a = k as f64 * 0.000_628_3 - std::f64::consts::PI;
             let (y, x) = (a.sin() * 3.7, a.cos() * 3.7);
             let want = y.atan2(x) / std::f64::consts::TAU;
             assert!((atan2_turns(y, x) - want).abs() < 3e-6, "angle {a}");
