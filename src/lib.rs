@@ -21,7 +21,7 @@
 //! Modules: [`io`] reads exemplars and writes outputs; [`analysis`] holds the offline
 //! stages (levelling, missing points, periodic + smooth, Gaussianisation, RPN/ADSN,
 //! periodicity detection, roller cuts); [`bake`] runs them into a [`bank::Bank`];
-//! [`lattice`] holds integer lattices in Hermite normal form; [`stream`] is the runtime
+//! [`lattice`] holds integer lattices in Hermite normal form; [`models`] holds procedural surfaces (face milling, seed 000 §4); [`stream`] is the runtime
 //! ([`stream::Surface`], [`stream::Region`], the blend and toroidal rules, [`stream::open`]); [`stats`] computes the quality figures; [`shade`]
 //! and [`render`] make pictures; [`demo`] is `surftile demo`.
 

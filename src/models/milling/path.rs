@@ -42,8 +42,15 @@ pub enum ToolPath {
         outward: bool,
         /// Last ring index of a finite spiral.
         k_end: Option<i64>,
+        /// φ_k of the first rings, [`spiral_angle`] computed once (the rings around the
+        /// origin, where every point has many candidates).
+        phis: std::sync::Arc<[f64]>,
     },
 }
+
+/// Rings of a spiral whose angles are tabulated: 2¹⁶ (512 KiB), a disc of radius
+/// √(2·2¹⁶·δ·a), 129 mm for the 4 mm presets.
+pub const SPIRAL_TABLE: usize = 1 << 16;
 
 /// Arc length of the spiral r = aφ from 0 to φ (seed 000 §4.3.2).
 #[inline(always)]
@@ -51,9 +58,9 @@ pub fn arc_length(a: f64, phi: f64) -> f64 {
     0.5 * a * (phi * (1.0 + phi * phi).sqrt() + phi.asinh())
 }
 
-/// φ_k with L(φ_k) = kδ, solved directly: Newton's method from φ₀ = √(2kδ/a), which lies
-/// above the root because L(φ) ≥ aφ²/2; L is convex, so the iterates fall monotonically
-/// to it. A pure function of k, so every caller (the index, the brute-force twin, the
+/// φ_k with L(φ_k) = kδ, solved directly by Newton's method from the asymptotic
+/// inverse of L (one or two steps far out), or from √(2kδ/a) near the origin, which
+/// lies above the root because L(φ) ≥ aφ²/2. A pure function of k, so every caller (the index, the brute-force twin, the
 /// GPU later) places ring k at the same point.
 ///
 /// The paper takes one Newton step from φ_(k−1) instead, which is O(k) to reach ring k
@@ -63,11 +70,18 @@ pub fn spiral_angle(a: f64, delta: f64, k: i64) -> f64 {
     if s <= 0.0 {
         return 0.0;
     }
-    let mut phi = (2.0 * s / a).sqrt();
+    let q = 2.0 * s / a;
+    // L(φ) = (a/2)(φ² + ln 2φ + ½ + O(φ⁻²)) inverted once for large φ; √q bounds the
+    // root from above elsewhere.
+    let mut phi = if q > 16.0 {
+        (q - (2.0 * q.sqrt()).ln() - 0.5).sqrt()
+    } else {
+        q.sqrt()
+    };
     for _ in 0..60 {
         let step = (arc_length(a, phi) - s) / (a * (1.0 + phi * phi).sqrt());
         phi -= step;
-        if step <= 1e-15 * phi.max(1.0) {
+        if step.abs() <= 1e-13 * phi.max(1.0) {
             break;
         }
     }
@@ -120,7 +134,12 @@ impl ToolPath {
                 let k_end = p
                     .radius_mm
                     .map(|r| (arc_length(a, r / a) / p.step_mm).floor() as i64);
+                let n = k_end.map_or(SPIRAL_TABLE, |k| (k as usize + 1).min(SPIRAL_TABLE));
+                let phis = (0..n)
+                    .map(|k| spiral_angle(a, p.step_mm, k as i64))
+                    .collect();
                 ToolPath::Spiral {
+                    phis,
                     a,
                     delta: p.step_mm,
                     origin: p.origin_mm.map_or((0.0, 0.0), |o| (o[0], o[1])),
@@ -178,9 +197,13 @@ impl ToolPath {
                 beta,
                 outward,
                 k_end,
+                ref phis,
             } => {
                 let k = id.0;
-                let phi = spiral_angle(a, delta, k);
+                let phi = match phis.get(k as usize) {
+                    Some(&p) => p,
+                    None => spiral_angle(a, delta, k),
+                };
                 let (sn, cs) = (phi + beta).sin_cos();
                 let rad = a * phi;
                 // d/dφ of (o·aφ·cos(φ+β), aφ·sin(φ+β)), reversed when travelling inwards.
