@@ -284,6 +284,19 @@ fn coordinate(name: &str, v: f64) -> Result<f64> {
     }
 }
 
+/// The region of `--x --y --w --h --step`, checked.
+fn region_of(x: f64, y: f64, w: i64, h: i64, step: f64) -> Result<Region> {
+    let region = Region::new(
+        coordinate("x", x)?,
+        coordinate("y", y)?,
+        checked_size("w", w)?,
+        checked_size("h", h)?,
+    )
+    .with_step(step);
+    region.validate()?;
+    Ok(region)
+}
+
 /// Refuses an output path whose folder does not exist, before any work is done.
 fn check_output(path: &Path) -> Result<()> {
     let dir = match path.parent() {
@@ -455,14 +468,7 @@ fn run(command: Command) -> Result<()> {
             out,
             shade,
         } => {
-            let region = Region::new(
-                coordinate("x", x)?,
-                coordinate("y", y)?,
-                checked_size("w", w)?,
-                checked_size("h", h)?,
-            )
-            .with_step(step);
-            region.validate()?;
+            let region = region_of(x, y, w, h, step)?;
             check_output(&out)?;
             let (bank, surface) = load_surface(&bank, seed)?;
             let start = Instant::now();
@@ -495,14 +501,7 @@ fn run(command: Command) -> Result<()> {
             out,
             shade,
         } => {
-            let region = Region::new(
-                coordinate("x", x)?,
-                coordinate("y", y)?,
-                checked_size("w", w)?,
-                checked_size("h", h)?,
-            )
-            .with_step(step);
-            region.validate()?;
+            let region = region_of(x, y, w, h, step)?;
             check_output(&out)?;
             let (config, base) = MillingConfig::load(&config)?;
             let start = Instant::now();

@@ -424,7 +424,7 @@ impl MillingConfig {
             if let Some((_, text)) = PRESETS.iter().find(|(n, _)| *n == name) {
                 return Ok((MillingConfig::from_toml(text, name)?, None));
             }
-            if !name.contains(['/', '\\']) && !path.exists() {
+            if !name.contains(['/', '\\']) {
                 let names: Vec<&str> = PRESETS.iter().map(|(n, _)| *n).collect();
                 return Err(Error::param(
                     "config",
