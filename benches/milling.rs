@@ -3,10 +3,14 @@
 //! convex interaction), each next to its baseline in the same run:
 //! - the indexed sampler ≥ 50× faster than the brute-force twin, which folds every ring
 //!   of the finite path reaching the 5 × 5 mm field (252 rings) at each point;
-//! - `height()` ≤ 300 ns median;
+//! - ≤ 300 ns per sample (median);
 //! - a 4096² fill ≤ 3 s on 2 cores.
 //!
-//! The spiral preset (spiral-d4-ae05) is measured beside it for the README's table.
+//! Per sample, two access patterns: rendering the 820² image of Fig. 25 on one thread
+//! (`render_820`: the indexed fill, which draws each ring once per block, against the
+//! twin rendering rows of the same image) and 1024 scattered `height()` calls
+//! (`milling`: each point on its own, against the twin at the same points). The spiral
+//! preset (spiral-d4-ae05) is measured beside it for the README's table.
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -15,7 +19,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use surftile::models::milling::{BruteForce, MillingConfig, MillingSurface};
-use surftile::stream::{Region, Surface};
+use surftile::stream::{Region, Surface, fill_parallel};
 
 fn surface(preset: &str) -> MillingSurface {
     let (c, _) = MillingConfig::load(preset.as_ref()).unwrap();
@@ -57,16 +61,47 @@ fn bench(c: &mut Criterion) {
     }
     g.finish();
 
+    let mut g = c.benchmark_group("render_820");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    for preset in ["parallel-d4-ae05", "spiral-d4-ae05"] {
+        let s = surface(preset);
+        let region = Region::new(0.0, 0.0, 820, 820);
+        let mut out = vec![0.0f32; 820 * 820];
+        g.throughput(Throughput::Elements(820 * 820));
+        g.bench_function(format!("{preset}/indexed_fill_1_thread"), |b| {
+            b.iter(|| {
+                fill_parallel(&s, black_box(&region), &mut out, 1).unwrap();
+                black_box(out[820 * 410])
+            })
+        });
+        // The twin renders 8 rows spread over the image (6560 samples) per iteration.
+        let twin = BruteForce::new(&s, 0.0, 0.0, 820.0, 820.0);
+        g.throughput(Throughput::Elements(8 * 820));
+        g.bench_function(format!("{preset}/brute_force_8_rows"), |b| {
+            b.iter(|| {
+                let mut sum = 0.0f32;
+                for r in 0..8 {
+                    let y = black_box(r as f64 * 102.5);
+                    for col in 0..820 {
+                        sum += twin.height(col as f64, y);
+                    }
+                }
+                sum
+            })
+        });
+    }
+    g.finish();
+
     let mut g = c.benchmark_group("milling_fill");
-    g.sample_size(10).measurement_time(Duration::from_secs(30));
+    g.sample_size(10).measurement_time(Duration::from_secs(20));
     let side = 4096usize;
     g.throughput(Throughput::Elements((side * side) as u64));
     let s = surface("parallel-d4-ae05");
     let region = Region::new(-2048.0, -2048.0, side, side);
     let mut out = vec![0.0f32; side * side];
-    g.bench_function("parallel-d4-ae05/fill_4096", |b| {
+    g.bench_function("parallel-d4-ae05/fill_4096_2_threads", |b| {
         b.iter(|| {
-            s.fill(black_box(&region), &mut out).unwrap();
+            fill_parallel(&s, black_box(&region), &mut out, 2).unwrap();
             black_box(out[side * side / 2])
         })
     });

@@ -39,11 +39,13 @@ pub mod config;
 pub mod path;
 pub mod ring;
 
+use std::ops::Range;
+
 use smallvec::SmallVec;
 
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::{Error, Result};
-use crate::stream::{Surface, in_range};
+use crate::stream::{Region, Surface, fill_rows_by_sample, in_range};
 use config::InteractionKind;
 pub use config::MillingConfig;
 use path::Nominal;
@@ -80,10 +82,23 @@ pub struct MillingSurface {
     rings: RingModel,
     path: ToolPath,
     lut: Vec<f32>,
+    /// The noise profiles as stored in a bank (f32).
     noise: Vec<f32>,
+    /// The same, quantised for the sampler ([`ring::quantise_noise`]).
+    noise_q: Vec<i16>,
     mm_per_px: f64,
     adaptation: Option<Adaptation>,
 }
+
+/// Fewest pixels across a block of [`MillingSurface::fill_rows`] worth drawing its rings
+/// once for.
+const MIN_BLOCK: usize = 4;
+/// Most pixels across a block.
+const MAX_BLOCK: usize = ring::SPAN;
+/// Pixel coordinates beyond which a block is folded point by point instead of ring by
+/// ring: up to here, a column's coordinate is exact to far better than the spans'
+/// one-column margin.
+const SPAN_LIMIT: f64 = (1u64 << 40) as f64;
 
 /// Samples of the statistics estimate: 2¹⁸ points.
 const STAT_SAMPLES: usize = 1 << 18;
@@ -121,6 +136,7 @@ impl MillingSurface {
             rings: RingModel::new(config, seed),
             path: ToolPath::new(config),
             lut,
+            noise_q: ring::quantise_noise(&noise),
             noise,
             mm_per_px: spacing_um / 1000.0,
             adaptation,
@@ -235,33 +251,214 @@ impl MillingSurface {
     #[inline]
     pub fn eval_mm(&self, x: f64, y: f64) -> f64 {
         let m = &self.rings;
-        let spiral = self.path.is_spiral();
-        // Stage 1 for every candidate, without branches, so the hash chains of all of
-        // them overlap; stage 2 only for the few whose support can contain the point.
-        let mut near: SmallVec<[(Nominal, ring::Near); 32]> = SmallVec::new();
-        self.path.candidates(x, y, m.reach_in, m.reach_out, |id| {
-            let ring = self.path.nominal(id);
-            near.push((ring, m.near(&ring, x, y)));
+        let path = &self.path;
+        let spiral = path.is_spiral();
+        // Stage 1 for every candidate: the hash, the jittered centre and the distance;
+        // stage 2 only for the few whose support can contain the point.
+        let mut near: SmallVec<[ring::Near; 16]> = SmallVec::new();
+        path.candidates(x, y, m.reach_in, m.reach_out, |id| {
+            let n = m.near(id, path.centre(id), x, y);
+            if m.may_cover(&n) {
+                near.push(n);
+            }
         });
-        let covering = near
-            .iter()
-            .filter(|(_, n)| m.may_cover(n))
-            .filter_map(|(ring, n)| Some((ring, m.finish(ring, n, &self.lut, &self.noise)?)));
+        let covering = near.iter().filter_map(|n| {
+            let ring = path.nominal(n.id);
+            Some((ring, m.finish(&ring, n, &self.lut, &self.noise_q)?))
+        });
         match m.interaction {
-            InteractionKind::Min => covering.fold(0.0f64, |v, (_, (r, _))| v.min(r)),
+            InteractionKind::Min => covering.fold(0.0f64, |f, (_, v)| f.min(v.r)),
             InteractionKind::Latest => covering
-                .map(|(ring, (r, _))| (m.key(ring, spiral), r))
+                .map(|(ring, v)| (m.key_of(&ring, v.order, spiral), v.r))
                 .max_by(|a, b| a.0.cmp(&b.0))
                 .map_or(0.0, |(_, r)| r),
             InteractionKind::Convex => {
-                let mut found: SmallVec<[(Key, f64, f64); 24]> = covering
-                    .map(|(ring, (r, a))| (m.key(ring, spiral), r, a))
+                let mut found: SmallVec<[(Key, f64, f64); 12]> = covering
+                    .map(|(ring, v)| (m.key_of(&ring, v.order, spiral), v.r, v.a))
                     .collect();
                 found.sort_unstable_by_key(|p| p.0);
                 found
                     .iter()
                     .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
             }
+        }
+    }
+
+    /// Rows `rows` of `region` in blocks: the rings that can reach a block are found
+    /// and drawn once ([`RingModel::drawn`]) and sorted into milling order once, then
+    /// every point of the block folds that list. A ring's numbers and the fold's order
+    /// of operations are those of [`Self::eval_mm`], so each value is the bits
+    /// `height()` gives at that point. Blocks are about one support annulus wide;
+    /// where that is under [`MIN_BLOCK`] pixels, points are sampled one by one.
+    fn fill_blocks(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let m = &self.rings;
+        let px_mm = region.step * self.mm_per_px;
+        let side = ((m.support2.1.sqrt() - m.support2.0.sqrt()) / px_mm).floor();
+        if !(region.step <= 1.0 && side >= MIN_BLOCK as f64) {
+            return fill_rows_by_sample(self, region, rows, out);
+        }
+        let side = (side as usize).min(MAX_BLOCK);
+        let spiral = self.path.is_spiral();
+        let mut list: Vec<ring::Drawn> = Vec::with_capacity(64);
+        let mut acc: Vec<f64> = Vec::with_capacity(side * side);
+        let w = region.width;
+        let mut r0 = rows.start;
+        while r0 < rows.end {
+            let r1 = (r0 + side).min(rows.end);
+            let mut c0 = 0;
+            while c0 < w {
+                let c1 = (c0 + side).min(w);
+                let (x0, y0) = (region.x_at(c0), region.y_at(r0));
+                let (x1, y1) = (region.x_at(c1 - 1), region.y_at(r1 - 1));
+                let at = |r: usize, c: usize| (r - rows.start) * w + c;
+                if !(in_range(x0, y0) && in_range(x1, y1)) {
+                    for r in r0..r1 {
+                        for c in c0..c1 {
+                            out[at(r, c)] = self.height(region.x_at(c), region.y_at(r));
+                        }
+                    }
+                    c0 = c1;
+                    continue;
+                }
+                let s = self.mm_per_px;
+                let rect = (x0 * s, y0 * s, x1 * s, y1 * s);
+                self.block_rings(rect, spiral, &mut list);
+                if x0.abs().max(x1.abs()).max(y0.abs()).max(y1.abs()) > SPAN_LIMIT {
+                    for r in r0..r1 {
+                        let y = region.y_at(r) * s;
+                        for c in c0..c1 {
+                            let x = region.x_at(c) * s;
+                            out[at(r, c)] = self.adapt(self.fold_drawn(&list, x, y));
+                        }
+                    }
+                } else {
+                    self.block_ring_major(region, (r0, r1, c0, c1), &list, &mut acc);
+                    let bw = c1 - c0;
+                    for r in r0..r1 {
+                        for c in c0..c1 {
+                            out[at(r, c)] = self.adapt(acc[(r - r0) * bw + c - c0]);
+                        }
+                    }
+                }
+                c0 = c1;
+            }
+            r0 = r1;
+        }
+    }
+
+    /// The rings that can reach the rectangle `rect` (mm), drawn, in milling order.
+    fn block_rings(&self, rect: (f64, f64, f64, f64), spiral: bool, list: &mut Vec<ring::Drawn>) {
+        let m = &self.rings;
+        let (x0, y0, x1, y1) = rect;
+        let (mx, my) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+        // Half the diagonal, a hair larger so rounding cannot drop a ring.
+        let half = 0.5 * (x1 - x0).hypot(y1 - y0) * (1.0 + 1e-9) + 1e-12;
+        let (s_in, s_out) = (m.support2.0 * (1.0 - 1e-9), m.support2.1 * (1.0 + 1e-9));
+        list.clear();
+        self.path.candidates(
+            mx,
+            my,
+            (m.reach_in - half).max(0.0),
+            m.reach_out + half,
+            |id| {
+                let d = m.drawn(&self.path.nominal(id), spiral);
+                // Nearest and farthest points of the rectangle from the ring's centre.
+                let (cx, cy) = d.centre;
+                let nx = (x0 - cx).max(cx - x1).max(0.0);
+                let ny = (y0 - cy).max(cy - y1).max(0.0);
+                let fx = (cx - x0).abs().max((x1 - cx).abs());
+                let fy = (cy - y0).abs().max((y1 - cy).abs());
+                if nx * nx + ny * ny <= s_out && fx * fx + fy * fy >= s_in {
+                    list.push(d);
+                }
+            },
+        );
+        if m.interaction != InteractionKind::Min {
+            list.sort_unstable_by_key(|d| d.key);
+        }
+    }
+
+    /// The block rows r0..r1 × columns c0..c1 of `region`, ring by ring in milling
+    /// order: each ring updates f only at the points of its support, found per row as
+    /// one or two column spans of the annulus (a column wider on each side, the exact
+    /// test being [`ring::Drawn::value`]'s). Per point, the rings covering it are folded
+    /// in the same order and with the same operations as in [`Self::fold_drawn`], so the
+    /// values are the same bits; a ring costs nothing at the points it misses.
+    fn block_ring_major(
+        &self,
+        region: &Region,
+        (r0, r1, c0, c1): (usize, usize, usize, usize),
+        list: &[ring::Drawn],
+        acc: &mut Vec<f64>,
+    ) {
+        let m = &self.rings;
+        let s = self.mm_per_px;
+        let bw = c1 - c0;
+        acc.clear();
+        acc.resize((r1 - r0) * bw, 0.0);
+        let xs: SmallVec<[f64; MAX_BLOCK]> = (c0..c1).map(|c| region.x_at(c) * s).collect();
+        let mut scratch = ring::SpanScratch::default();
+        // Column of x (mm), before rounding.
+        let col_of = |x: f64| (x / s - region.x) / region.step - region.col0 as f64;
+        let (s_in, s_out) = (m.support2.0, m.support2.1);
+        for d in list {
+            let (cx, cy) = d.centre;
+            for r in r0..r1 {
+                let y = region.y_at(r) * s;
+                let dy2 = (y - cy) * (y - cy);
+                let out2 = s_out * (1.0 + 1e-9) - dy2;
+                if out2 < 0.0 {
+                    continue;
+                }
+                let half_out = out2.sqrt();
+                let in2 = s_in * (1.0 - 1e-9) - dy2;
+                let row = &mut acc[(r - r0) * bw..(r - r0 + 1) * bw];
+                let mut span = |lo: f64, hi: f64| {
+                    let a = (col_of(lo).floor() - 1.0).max(c0 as f64);
+                    let b = (col_of(hi).ceil() + 1.0).min((c1 - 1) as f64);
+                    if a.is_nan() || b.is_nan() || a > b {
+                        return;
+                    }
+                    let (a, b) = (a as usize - c0, b as usize - c0);
+                    m.span(
+                        d,
+                        &xs[a..=b],
+                        y,
+                        &self.lut,
+                        &self.noise_q,
+                        &mut scratch,
+                        |k, v| {
+                            let f = &mut row[a + k];
+                            *f = match m.interaction {
+                                InteractionKind::Min => f.min(v.r),
+                                InteractionKind::Latest => v.r,
+                                InteractionKind::Convex => v.a * v.r + (1.0 - v.a) * *f,
+                            };
+                        },
+                    );
+                };
+                if in2 > 0.0 {
+                    let half_in = in2.sqrt();
+                    span(cx - half_out, cx - half_in);
+                    span(cx + half_in, cx + half_out);
+                } else {
+                    span(cx - half_out, cx + half_out);
+                }
+            }
+        }
+    }
+
+    /// [`Self::eval_mm`] over a block's ring list in milling order.
+    #[inline(always)]
+    fn fold_drawn(&self, list: &[ring::Drawn], x: f64, y: f64) -> f64 {
+        let m = &self.rings;
+        let mut covering = list
+            .iter()
+            .filter_map(|d| d.value(m, x, y, &self.lut, &self.noise_q));
+        match m.interaction {
+            InteractionKind::Min => covering.fold(0.0f64, |f, v| f.min(v.r)),
+            InteractionKind::Latest => covering.next_back().map_or(0.0, |v| v.r),
+            InteractionKind::Convex => covering.fold(0.0, |f, v| v.a * v.r + (1.0 - v.a) * f),
         }
     }
 
@@ -375,6 +572,10 @@ impl Surface for MillingSurface {
         }
         self.adapt(self.eval_mm(x * self.mm_per_px, y * self.mm_per_px))
     }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        self.fill_blocks(region, rows, out);
+    }
 }
 
 /// The brute-force twin (seed 000 §4 as written): every ring of the finite path that
@@ -416,11 +617,11 @@ impl<'a> BruteForce<'a> {
         let m = &s.rings;
         let mut f = 0.0f64;
         for (_, ring) in &self.rings {
-            let value = m.value(ring, x, y, &s.lut, &s.noise);
+            let value = m.value(ring, x, y, &s.lut, &s.noise_q);
             f = match (m.interaction, value) {
-                (InteractionKind::Min, v) => f.min(v.map_or(0.0, |v| v.0)),
-                (InteractionKind::Latest, Some((r, _))) => r,
-                (InteractionKind::Convex, Some((r, a))) => a * r + (1.0 - a) * f,
+                (InteractionKind::Min, v) => f.min(v.map_or(0.0, |v| v.r)),
+                (InteractionKind::Latest, Some(v)) => v.r,
+                (InteractionKind::Convex, Some(v)) => v.a * v.r + (1.0 - v.a) * f,
                 (_, None) => f,
             };
         }

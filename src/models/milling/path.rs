@@ -161,6 +161,31 @@ impl ToolPath {
         matches!(self, ToolPath::Spiral { .. })
     }
 
+    /// Nominal centre of ring `id` (mm): the first part of [`Self::nominal`], all the
+    /// index needs for the rings that turn out not to cover a point.
+    #[inline(always)]
+    pub fn centre(&self, id: (i64, i64)) -> (f64, f64) {
+        match *self {
+            ToolPath::Parallel {
+                cos_b,
+                sin_b,
+                rho,
+                delta,
+                shift,
+                ..
+            } => {
+                let (i, j) = id;
+                let s = i as f64 * delta + j as f64 * shift;
+                let t = j as f64 * rho;
+                (s * cos_b - t * sin_b, s * sin_b + t * cos_b)
+            }
+            ToolPath::Spiral { .. } => {
+                let n = self.nominal(id);
+                (n.1, n.2)
+            }
+        }
+    }
+
     /// Nominal placement of ring (i, j) (parallel) or (k, _) (spiral).
     #[inline(always)]
     pub fn nominal(&self, id: (i64, i64)) -> Nominal {

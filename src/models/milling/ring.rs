@@ -22,20 +22,24 @@ pub const SHAPE_LUT: usize = 1025;
 /// Truncation of every normal draw, in standard deviations: it bounds a ring's reach.
 pub const TRUNCATE_SIGMA: f64 = 4.0;
 
+/// Most points of a row [`RingModel::span`] takes at once.
+pub const SPAN: usize = 64;
+
 /// Entries of the inverse normal CDF table, less one.
 const INV_CDF: usize = 4096;
 
 /// Φ⁻¹(i/4096) for i = 0..=4096, clamped to ±4 ([`normal_quantile`]).
-fn inv_cdf_table() -> &'static [f64; INV_CDF + 1] {
-    static TABLE: OnceLock<Box<[f64; INV_CDF + 1]>> = OnceLock::new();
+/// Stored as f32 (16 KiB, half of L1) since every sample reads it at random.
+fn inv_cdf_table() -> &'static [f32; INV_CDF + 1] {
+    static TABLE: OnceLock<Box<[f32; INV_CDF + 1]>> = OnceLock::new();
     TABLE.get_or_init(|| {
-        let mut t = Box::new([0.0; INV_CDF + 1]);
+        let mut t = Box::new([0.0f32; INV_CDF + 1]);
         for (i, v) in t.iter_mut().enumerate() {
             *v = if i == 0 || i == INV_CDF {
                 TRUNCATE_SIGMA * if i == 0 { -1.0 } else { 1.0 }
             } else {
                 normal_quantile(i as f64 / INV_CDF as f64).clamp(-TRUNCATE_SIGMA, TRUNCATE_SIGMA)
-            };
+            } as f32;
         }
         t
     })
@@ -45,16 +49,11 @@ fn inv_cdf_table() -> &'static [f64; INV_CDF + 1] {
 /// position in (0, 1), linear between the table's entries (the top 12 bits pick the
 /// entry, the low 4 the point between it and the next).
 #[inline(always)]
-fn normal(table: &[f64; INV_CDF + 1], bits: u32) -> f64 {
+fn normal(table: &[f32; INV_CDF + 1], bits: u32) -> f64 {
     let i = ((bits >> 4) & 0xFFF) as usize;
     let f = ((bits & 15) as f64 + 0.5) * (1.0 / 16.0);
-    table[i] + (table[i + 1] - table[i]) * f
-}
-
-/// A uniform draw in [0, 1) from a hash word.
-#[inline(always)]
-fn uniform(word: u32) -> f64 {
-    word as f64 * (1.0 / 4_294_967_296.0)
+    let (a, b) = (table[i] as f64, table[i + 1] as f64);
+    a + (b - a) * f
 }
 
 /// A uniform draw in (0, 1) from 16 hash bits.
@@ -148,18 +147,28 @@ enum Part {
     Outer = 2,
 }
 
-/// A ring's first stage at a point: its hash (stream 0), the point's offset from the
-/// jittered centre and the squared distance (mm, mm²).
+/// A ring's first stage at a point: its id and hash (stream 0), the point's offset from
+/// the jittered centre and the squared distance (mm, mm²).
 #[derive(Clone, Copy, Debug)]
 pub struct Near {
+    /// The ring's id.
+    pub id: (i64, i64),
     h: [u32; 4],
     dx: f64,
     dy: f64,
     dist2: f64,
 }
 
-/// The order in which rings were milled: (line or turn rank, position along the line,
-/// tie-break of reordered rings, ring index). Later is larger.
+/// A ring's value at a point it covers: R_k, the convex weight A_k, and the hash word
+/// that decides its ε reordering ([`RingModel::key_of`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Value {
+    /// R_k(x, y) (µm).
+    pub r: f64,
+    /// A_k(x, y) ∈ [0, 1] (1 unless the interaction is convex).
+    pub a: f64,
+    pub(super) order: u32,
+}
 pub type Key = (i64, i64, u32, i64, i64);
 
 /// The numbers of the ring sub-model, derived once from a configuration (mm, µm).
@@ -187,9 +196,9 @@ pub struct RingModel {
     /// How far a reordered ring moves, in rings.
     pub(super) reorder_reach: i64,
     /// The inverse normal CDF table of the hashed draws.
-    inv_cdf: &'static [f64; INV_CDF + 1],
+    inv_cdf: &'static [f32; INV_CDF + 1],
     /// Squared distances from a jittered centre outside which no ring has support (mm²).
-    support2: (f64, f64),
+    pub(super) support2: (f64, f64),
     seed: u32,
 }
 
@@ -273,25 +282,31 @@ impl RingModel {
     }
 
     /// The ring's place in the milling order after the ε reordering: with probability
-    /// ε (its hash, stream 4) the ring moves by a hashed 1 to m rings forwards or
-    /// backwards along its line (parallel: position) or spiral (rank).
+    /// ε (16 bits of its hash, stream 1, word 3) the ring moves by a hashed 1 to m rings
+    /// forwards or backwards along its line (parallel: position) or spiral (rank), and
+    /// comes after the ring it lands on.
     #[inline(always)]
     pub fn key(&self, ring: &Nominal, spiral: bool) -> Key {
+        let order = hash_cell(self.seed, ring.0.0, ring.0.1, 1)[3];
+        self.key_of(ring, order, spiral)
+    }
+
+    /// [`Self::key`] from the hash word already drawn by [`Self::finish`].
+    #[inline(always)]
+    pub fn key_of(&self, ring: &Nominal, order: u32, spiral: bool) -> Key {
         let (id, _, _, _, (mut rank, mut pos)) = *ring;
         let mut tie = 0;
-        if self.reorder > 0.0 {
-            let h = hash_cell(self.seed, id.0, id.1, 4);
-            if uniform(h[0]) < self.reorder {
-                let m = self.reorder_reach;
-                let step = (h[1] as u64 % (2 * m as u64)) as i64 - m;
-                let step = if step >= 0 { step + 1 } else { step };
-                if spiral {
-                    rank = rank.saturating_add(step);
-                } else {
-                    pos = pos.saturating_add(step);
-                }
-                tie = h[2] | 1;
+        if self.reorder > 0.0 && uniform16(order) < self.reorder {
+            let m = self.reorder_reach as u64;
+            // Multiply-shift range reduction of 16 bits to 0..2m.
+            let step = (((order >> 16) as u64 * 2 * m) >> 16) as i64 - m as i64;
+            let step = if step >= 0 { step + 1 } else { step };
+            if spiral {
+                rank = rank.saturating_add(step);
+            } else {
+                pos = pos.saturating_add(step);
             }
+            tie = 1;
         }
         (rank, pos, tie, id.0, id.1)
     }
@@ -302,7 +317,8 @@ impl RingModel {
     /// The ring's random numbers come from its hash, drawn only as far as the point
     /// needs them. Stream 0 gives 8 draws of 16 bits: the jitter (z₁, z₂), the widths
     /// w⁻, w⁺ⁱ, w⁺ᵒ, the noise profile and rotation, and the convex weights a_k, b_k;
-    /// stream 1 + part gives the tilting plane (l, h) of the part the point lies in.
+    /// stream 1 gives the tilting plane (l, h) of each part (words 0–2) and the ε
+    /// reordering (word 3).
     #[inline(always)]
     pub fn value(
         &self,
@@ -310,9 +326,9 @@ impl RingModel {
         x: f64,
         y: f64,
         lut: &[f32],
-        noise: &[f32],
-    ) -> Option<(f64, f64)> {
-        let near = self.near(ring, x, y);
+        noise: &[i16],
+    ) -> Option<Value> {
+        let near = self.near(ring.0, (ring.1, ring.2), x, y);
         if !self.may_cover(&near) {
             return None;
         }
@@ -320,16 +336,20 @@ impl RingModel {
     }
 
     /// First stage of [`Self::value`], free of branches: the ring's hash, the offset of
-    /// the point from its jittered centre, and the squared distance.
+    /// the point from its jittered centre (the nominal centre is `centre`), and the
+    /// squared distance.
     #[inline(always)]
-    pub fn near(&self, ring: &Nominal, x: f64, y: f64) -> Near {
-        let (id, nx, ny, _, _) = *ring;
+    pub fn near(&self, id: (i64, i64), centre: (f64, f64), x: f64, y: f64) -> Near {
         let t = self.inv_cdf;
         let h = hash_cell(self.seed, id.0, id.1, 0);
         let (z1, z2) = (normal(t, h[0]), normal(t, h[0] >> 16));
         let (l00, l10, l11) = self.chol;
-        let (dx, dy) = (x - (nx + l00 * z1), y - (ny + l10 * z1 + l11 * z2));
+        let (dx, dy) = (
+            x - (centre.0 + l00 * z1),
+            y - (centre.1 + l10 * z1 + l11 * z2),
+        );
         Near {
+            id,
             h,
             dx,
             dy,
@@ -343,83 +363,367 @@ impl RingModel {
         near.dist2 >= self.support2.0 && near.dist2 <= self.support2.1
     }
 
-    /// Second stage of [`Self::value`], for a point that [`Self::may_cover`] passed.
+    /// Second stage of [`Self::value`], for a point that [`Self::may_cover`] passed;
+    /// `ring` is the nominal placement of `near.id`. Draws only what the point needs.
     #[inline(always)]
-    pub fn finish(
-        &self,
-        ring: &Nominal,
-        near: &Near,
-        lut: &[f32],
-        noise: &[f32],
-    ) -> Option<(f64, f64)> {
-        let (id, _, _, (cos_t, sin_t), _) = *ring;
-        let t = self.inv_cdf;
-        let Near { h, dx, dy, dist2 } = *near;
+    pub fn finish(&self, ring: &Nominal, near: &Near, lut: &[f32], noise: &[i16]) -> Option<Value> {
+        let (id, _, _, dir, _) = *ring;
+        let Near {
+            h, dx, dy, dist2, ..
+        } = *near;
         let dist = dist2.sqrt();
+        let w_minus = self.w_minus(h);
+        let (part, centre, width) = self.part_of(
+            dist,
+            w_minus,
+            || self.w_inner(h, w_minus),
+            || self.w_outer(h),
+        )?;
+        let h1 = hash_cell(self.seed, id.0, id.1, 1);
+        let along = self.along(dir, dx, dy);
+        Some(Value {
+            r: self.ring_value(
+                (part, centre, width),
+                dist,
+                along,
+                self.plane(h1, part),
+                h[2] >> 16,
+                dx,
+                dy,
+                lut,
+                noise,
+            ),
+            a: self.weight(self.weights(h), along),
+            order: h1[3],
+        })
+    }
+
+    /// w⁻ (mm) from stream 0, word 1, low half.
+    #[inline(always)]
+    fn w_minus(&self, h: [u32; 4]) -> f64 {
+        self.draw(0, h[1]).min(self.r)
+    }
+
+    /// w⁺ⁱ (mm) from stream 0, word 1, high half; at most the r − w⁻ left inside.
+    #[inline(always)]
+    fn w_inner(&self, h: [u32; 4], w_minus: f64) -> f64 {
+        self.draw(1, h[1] >> 16).min(self.r - w_minus)
+    }
+
+    /// w⁺ᵒ (mm) from stream 0, word 2, low half.
+    #[inline(always)]
+    fn w_outer(&self, h: [u32; 4]) -> f64 {
+        self.draw(2, h[2])
+    }
+
+    #[inline(always)]
+    fn draw(&self, k: usize, bits: u32) -> f64 {
+        (self.widths[k].0 + self.widths[k].1 * normal(self.inv_cdf, bits)).max(0.0)
+    }
+
+    /// The part of the ring at distance `dist` from its centre, with the centre and
+    /// width of that part's profile, or None off the support. Closed parts, tried in
+    /// the order indentation, inner, outer (their common borders have S = 0 in every
+    /// part but the indicator's indentation). The bump's widths are asked for only when
+    /// needed.
+    #[inline(always)]
+    fn part_of(
+        &self,
+        dist: f64,
+        w_minus: f64,
+        w_inner: impl FnOnce() -> f64,
+        w_outer: impl FnOnce() -> f64,
+    ) -> Option<(Part, f64, f64)> {
         let r = self.r;
-        let draw =
-            |k: usize, bits: u32| (self.widths[k].0 + self.widths[k].1 * normal(t, bits)).max(0.0);
-        let w_minus = draw(0, h[1]).min(r);
         let edge = r - w_minus;
-        // Closed parts, tried in the order indentation, inner, outer (their common
-        // borders have S = 0 in every part but the indicator's indentation).
-        let (part, centre, width) = if dist >= edge && dist <= r && w_minus > 0.0 {
-            (Part::Indentation, r - 0.5 * w_minus, w_minus)
+        if dist >= edge && dist <= r && w_minus > 0.0 {
+            Some((Part::Indentation, r - 0.5 * w_minus, w_minus))
         } else if self.shape != ShapeKind::Bump {
-            return None;
+            None
         } else if dist < edge {
-            let w = draw(1, h[1] >> 16).min(edge);
-            if !(w > 0.0 && dist >= edge - w) {
-                return None;
-            }
-            (Part::Inner, edge - 0.5 * w, w)
+            let w = w_inner();
+            (w > 0.0 && dist >= edge - w).then_some((Part::Inner, edge - 0.5 * w, w))
         } else {
-            let w = draw(2, h[2]);
-            if !(w > 0.0 && dist > r && dist <= r + w) {
-                return None;
-            }
-            (Part::Outer, r + 0.5 * w, w)
-        };
-        let s = match (self.shape, part) {
-            (ShapeKind::Indicator, _) => -1.0,
-            (_, p) => {
+            let w = w_outer();
+            (w > 0.0 && dist > r && dist <= r + w).then_some((Part::Outer, r + 0.5 * w, w))
+        }
+    }
+
+    /// Position along the direction of motion, −½ at the rear to ½ at the front.
+    #[inline(always)]
+    fn along(&self, (cos_t, sin_t): (f64, f64), dx: f64, dy: f64) -> f64 {
+        (cos_t * dx + sin_t * dy) * (0.5 / self.r)
+    }
+
+    /// The tilting plane's (l, h) of `part` (µm), from stream 1, word `part`.
+    #[inline(always)]
+    fn plane(&self, h1: [u32; 4], part: Part) -> (f64, f64) {
+        let hp = h1[part as usize];
+        let (ml, sl, mh, sh) = self.tilt[part as usize];
+        let t = self.inv_cdf;
+        (ml + sl * normal(t, hp), mh + sh * normal(t, hp >> 16))
+    }
+
+    /// The convex weights (a_k at the front, b_k at the rear) from stream 0, word 3.
+    #[inline(always)]
+    fn weights(&self, h: [u32; 4]) -> (f64, f64) {
+        (
+            self.front.0 + (self.front.1 - self.front.0) * uniform16(h[3]),
+            self.rear.0 + (self.rear.1 - self.rear.0) * uniform16(h[3] >> 16),
+        )
+    }
+
+    /// A_k: eq. (1) with a_k at the front and b_k at the rear (Table 3's names); 1
+    /// unless the interaction is convex.
+    #[inline(always)]
+    fn weight(&self, (a, b): (f64, f64), along: f64) -> f64 {
+        if self.interaction == InteractionKind::Convex {
+            ((a - b) * along + 0.5 * (a + b)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    }
+
+    /// R_k = S_k·T_k + N_k at a point of the ring's `part` (eq. 1): the shape from the
+    /// table, the plane through the lowest (rear) and highest (front) scaling, and the
+    /// noise profile picked and rotated by the 16 bits `noise_word`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn ring_value(
+        &self,
+        (part, centre, width): (Part, f64, f64),
+        dist: f64,
+        along: f64,
+        (low, high): (f64, f64),
+        noise_word: u32,
+        dx: f64,
+        dy: f64,
+        lut: &[f32],
+        noise: &[i16],
+    ) -> f64 {
+        let v = self.shape_plane((part, centre, width), dist, along, (low, high), lut);
+        if self.noise_amplitude > 0.0 {
+            v + self.noise_at(noise_word, dx, dy, noise)
+        } else {
+            v
+        }
+    }
+
+    /// S_k·T_k: the shape from the table times the tilting plane.
+    #[inline(always)]
+    fn shape_plane(
+        &self,
+        (part, centre, width): (Part, f64, f64),
+        dist: f64,
+        along: f64,
+        (low, high): (f64, f64),
+        lut: &[f32],
+    ) -> f64 {
+        let s = match self.shape {
+            ShapeKind::Indicator => -1.0,
+            _ => {
                 // D = (dist − centre)·2/w ∈ [−1, 1]; cos(π/2·D) from the table.
                 let d = ((dist - centre) * 2.0 / width).clamp(-1.0, 1.0);
                 let pos = (d + 1.0) * (0.5 * (SHAPE_LUT - 1) as f64);
                 let i = (pos as usize).min(SHAPE_LUT - 2);
                 let f = pos - i as f64;
                 let c = lut[i] as f64 + (lut[i + 1] as f64 - lut[i] as f64) * f;
-                if p == Part::Indentation { -c } else { c }
+                if part == Part::Indentation { -c } else { c }
             }
         };
-        // Eq. (1): the plane through the lowest (rear) and highest (front) scaling.
-        let along = (cos_t * dx + sin_t * dy) * (0.5 / r);
-        let hp = hash_cell(self.seed, id.0, id.1, 1 + part as u32)[0];
-        let (ml, sl, mh, sh) = self.tilt[part as usize];
-        let (low, high) = (ml + sl * normal(t, hp), mh + sh * normal(t, hp >> 16));
         let plane = (high - low) * along + 0.5 * (high + low);
-        let mut v = s * plane;
-        if self.noise_amplitude > 0.0 {
-            let w = h[2] >> 16;
-            let profile = (w as usize >> 10) % NOISE_PROFILES;
-            let turn = atan2_turns(dy, dx) + (w & 0x3FF) as f64 * (1.0 / 1024.0);
-            let pos = (turn - turn.floor()) * NOISE_SAMPLES as f64;
-            let i = (pos as usize).min(NOISE_SAMPLES - 1);
-            let f = pos - i as f64;
-            let row = &noise[profile * NOISE_SAMPLES..(profile + 1) * NOISE_SAMPLES];
-            let (a, b) = (row[i] as f64, row[(i + 1) % NOISE_SAMPLES] as f64);
-            v += self.noise_amplitude * (a + (b - a) * f);
-        }
-        let weight = if self.interaction == InteractionKind::Convex {
-            // A_k: eq. (1) with a_k at the front and b_k at the rear (Table 3's names).
-            let a = self.front.0 + (self.front.1 - self.front.0) * uniform16(h[3]);
-            let b = self.rear.0 + (self.rear.1 - self.rear.0) * uniform16(h[3] >> 16);
-            ((a - b) * along + 0.5 * (a + b)).clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        Some((v, weight))
+        s * plane
     }
+
+    /// N_k: the noise profile picked and rotated by the 16 bits `noise_word`, at the
+    /// angle of (dx, dy), times the amplitude.
+    #[inline(always)]
+    fn noise_at(&self, noise_word: u32, dx: f64, dy: f64, noise: &[i16]) -> f64 {
+        let profile = (noise_word as usize >> 10) % NOISE_PROFILES;
+        let turn = atan2_turns(dy, dx) + (noise_word & 0x3FF) as f64 * (1.0 / 1024.0);
+        let pos = (turn - turn.floor()) * NOISE_SAMPLES as f64;
+        let i = (pos as usize).min(NOISE_SAMPLES - 1);
+        let f = pos - i as f64;
+        let row = &noise[profile * NOISE_SAMPLES..(profile + 1) * NOISE_SAMPLES];
+        let (a, b) = (row[i] as f64, row[(i + 1) % NOISE_SAMPLES] as f64);
+        self.noise_amplitude * NOISE_UNIT * (a + (b - a) * f)
+    }
+
+    /// Ring `d` at the points (xs[k], y) of a row (mm, at most [`SPAN`] of them): calls
+    /// `fold(k, value)` for each point it covers, in order. The values are those of
+    /// [`Drawn::value`], bit for bit; the work runs in passes over the row (distances,
+    /// shape and plane, noise), each over the points still covered, whose short
+    /// independent iterations overlap where the point-by-point chain (square root,
+    /// table, arctangent, table) would wait.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn span(
+        &self,
+        d: &Drawn,
+        xs: &[f64],
+        y: f64,
+        lut: &[f32],
+        noise: &[i16],
+        t: &mut SpanScratch,
+        mut fold: impl FnMut(usize, Value),
+    ) {
+        let xs = &xs[..xs.len().min(SPAN)];
+        let dy = y - d.centre.1;
+        let dy2 = dy * dy;
+        let mut n = 0;
+        for (k, &x) in xs.iter().enumerate() {
+            let dx = x - d.centre.0;
+            let d2 = dx * dx + dy2;
+            t.idx[n] = k as u8;
+            t.dx[n] = dx;
+            t.dist[n] = d2.sqrt();
+            n += (d2 >= self.support2.0 && d2 <= self.support2.1) as usize;
+        }
+        let mut m = 0;
+        for q in 0..n {
+            let (dx, dist) = (t.dx[q], t.dist[q]);
+            if let Some(pcw) = self.part_of(dist, d.w_minus, || d.w_inner, || d.w_outer) {
+                let along = self.along(d.dir, dx, dy);
+                t.idx[m] = t.idx[q];
+                t.dx[m] = dx;
+                t.v[m] = self.shape_plane(pcw, dist, along, d.planes[pcw.0 as usize], lut);
+                t.a[m] = self.weight(d.weights, along);
+                m += 1;
+            }
+        }
+        if self.noise_amplitude > 0.0 {
+            for q in 0..m {
+                t.v[q] += self.noise_at(d.noise_word, t.dx[q], dy, noise);
+            }
+        }
+        for q in 0..m {
+            fold(
+                t.idx[q] as usize,
+                Value {
+                    r: t.v[q],
+                    a: t.a[q],
+                    order: 0,
+                },
+            );
+        }
+    }
+
+    /// Everything about ring `ring` that does not depend on the point, drawn at once:
+    /// what a region fill computes once per ring and block ([`Drawn::value`]).
+    pub fn drawn(&self, ring: &Nominal, spiral: bool) -> Drawn {
+        let (id, cx, cy, dir, _) = *ring;
+        let near = self.near(id, (cx, cy), 0.0, 0.0);
+        let h = near.h;
+        let h1 = hash_cell(self.seed, id.0, id.1, 1);
+        let w_minus = self.w_minus(h);
+        Drawn {
+            // near() at the origin gives dx = 0 − (cx + jitter): the jittered centre
+            // negated, and x − c below is the same sum near() forms at x.
+            centre: (-near.dx, -near.dy),
+            dir,
+            w_minus,
+            w_inner: self.w_inner(h, w_minus),
+            w_outer: self.w_outer(h),
+            planes: [
+                self.plane(h1, Part::Indentation),
+                self.plane(h1, Part::Inner),
+                self.plane(h1, Part::Outer),
+            ],
+            noise_word: h[2] >> 16,
+            weights: self.weights(h),
+            key: self.key_of(ring, h1[3], spiral),
+        }
+    }
+}
+
+/// Working rows of [`RingModel::span`], kept by the caller so no call clears them.
+#[derive(Clone, Debug)]
+pub struct SpanScratch {
+    idx: [u8; SPAN],
+    dx: [f64; SPAN],
+    dist: [f64; SPAN],
+    v: [f64; SPAN],
+    a: [f64; SPAN],
+}
+
+impl Default for SpanScratch {
+    fn default() -> Self {
+        SpanScratch {
+            idx: [0; SPAN],
+            dx: [0.0; SPAN],
+            dist: [0.0; SPAN],
+            v: [0.0; SPAN],
+            a: [0.0; SPAN],
+        }
+    }
+}
+
+/// The point-independent draws of one ring ([`RingModel::drawn`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Drawn {
+    /// The jittered centre (mm).
+    pub centre: (f64, f64),
+    dir: (f64, f64),
+    w_minus: f64,
+    w_inner: f64,
+    w_outer: f64,
+    planes: [(f64, f64); 3],
+    noise_word: u32,
+    weights: (f64, f64),
+    /// The ring's place in the milling order.
+    pub key: Key,
+}
+
+impl Drawn {
+    /// The ring's value at (x, y) (mm), or None off its support: the same numbers, in
+    /// the same order of operations, as [`RingModel::value`].
+    #[inline(always)]
+    pub fn value(
+        &self,
+        m: &RingModel,
+        x: f64,
+        y: f64,
+        lut: &[f32],
+        noise: &[i16],
+    ) -> Option<Value> {
+        let (dx, dy) = (x - self.centre.0, y - self.centre.1);
+        let dist2 = dx * dx + dy * dy;
+        if !(dist2 >= m.support2.0 && dist2 <= m.support2.1) {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let (part, centre, width) =
+            m.part_of(dist, self.w_minus, || self.w_inner, || self.w_outer)?;
+        let along = m.along(self.dir, dx, dy);
+        Some(Value {
+            r: m.ring_value(
+                (part, centre, width),
+                dist,
+                along,
+                self.planes[part as usize],
+                self.noise_word,
+                dx,
+                dy,
+                lut,
+                noise,
+            ),
+            a: m.weight(self.weights, along),
+            order: 0,
+        })
+    }
+}
+
+/// The value of one step of a quantised noise profile ([`quantise_noise`]).
+pub const NOISE_UNIT: f64 = 1.0 / 32767.0;
+
+/// The noise profiles as the sampler reads them: 16-bit steps of 1/32767 (an error of
+/// 1.5·10⁻⁵ of the noise amplitude), so the 64 profiles take 256 KiB and stay in L2
+/// under random access instead of 512 KiB as f32.
+pub fn quantise_noise(profiles: &[f32]) -> Vec<i16> {
+    profiles
+        .iter()
+        .map(|&v| (v.clamp(-1.0, 1.0) as f64 * 32767.0).round() as i16)
+        .collect()
 }
 
 #[cfg(test)]
