@@ -69,6 +69,15 @@ pub enum Error {
         /// What size was found and what is needed.
         message: String,
     },
+    /// The input was read, but the analysis found nothing it could use (no lattice in a
+    /// texture, …).
+    #[error("{what}: {message}")]
+    Analysis {
+        /// The input concerned.
+        what: String,
+        /// What was not found, the figure that decided it, and what to do instead.
+        message: String,
+    },
     /// A request exceeds a size limit (memory, dimensions).
     #[error("too large: {0}")]
     Limits(String),

@@ -190,6 +190,22 @@ enum Command {
         #[arg(long)]
         raw_shape: Option<String>,
     },
+    /// Estimate the two translation vectors of a near-regular image (seed 002 §3.3):
+    /// prints v1, v2 (pixels) and the goodness of eq. 9.
+    Lattice {
+        /// Image (PNG, TIFF, .npy, raw f32 with --raw-shape); all channels are used.
+        image: PathBuf,
+        /// Print JSON: {"v1": [x, y], "v2": [x, y], "goodness": g}.
+        #[arg(long)]
+        json: bool,
+        /// Also write the normalised autocorrelation (grey, γ from −1 black to 1 white)
+        /// with the lattice points marked in red, as PNG.
+        #[arg(long, value_name = "OUT.png")]
+        plot: Option<PathBuf>,
+        /// Shape of raw f32 inputs: WxH.
+        #[arg(long)]
+        raw_shape: Option<String>,
+    },
     /// Bake the bundled exemplar and write a small gallery.
     Demo {
         /// Output folder.
@@ -374,6 +390,114 @@ fn bake_milling(config: &Path, spacing: Option<f64>, seed: u64, out: &Path) -> R
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// `surftile lattice`: the autocorrelation, the best pair, the optional plot.
+fn lattice_command(
+    image: &Path,
+    json: bool,
+    plot: Option<&Path>,
+    options: &ReadOptions,
+) -> Result<()> {
+    use surftile::analysis::{ncc, translation};
+    let raster = read_image(image, options)?.raster;
+    let what = image.display().to_string();
+    if raster.data.iter().any(|v| v.is_nan()) {
+        return Err(Error::MissingData {
+            what,
+            count: raster.count_nan(),
+            total: raster.data.len(),
+        });
+    }
+    let map = ncc::autocorrelation(&raster)?;
+    let best = translation::best_pair(&map);
+    let t = match best {
+        Some(t) if t.mean_gamma >= translation::MIN_MEAN_GAMMA => t,
+        other => {
+            return Err(Error::Analysis {
+                what,
+                message: format!(
+                    "no lattice detected (the best pair's mean autocorrelation at its multiples is {:.3}, under {}): for a stochastic texture pass --stochastic, or give the vectors with --lattice \"ux,uy;vx,vy\"",
+                    other.map_or(0.0, |t| t.mean_gamma),
+                    translation::MIN_MEAN_GAMMA
+                ),
+            });
+        }
+    };
+    if let Some(out) = plot {
+        write_lattice_plot(out, &map, t)?;
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({"v1": [t.v1.0, t.v1.1], "v2": [t.v2.0, t.v2.1], "goodness": t.goodness})
+        );
+    } else {
+        println!("v1          ({}, {}) px", t.v1.0, t.v1.1);
+        println!("v2          ({}, {}) px", t.v2.0, t.v2.1);
+        println!(
+            "goodness    {:.4} (eq. 9, α = {})",
+            t.goodness,
+            translation::ALPHA
+        );
+        println!("mean γ      {:.4} over the lattice multiples", t.mean_gamma);
+    }
+    Ok(())
+}
+
+/// The autocorrelation as an RGB PNG, centre = zero shift, lattice points in red.
+fn write_lattice_plot(
+    out: &Path,
+    map: &surftile::analysis::ncc::NccMap,
+    t: surftile::analysis::translation::Translation,
+) -> Result<()> {
+    let (w, h) = (map.width, map.height);
+    let mut px: Vec<u8> = map
+        .gamma
+        .iter()
+        .flat_map(|g| {
+            let v = ((g + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8;
+            [v, v, v]
+        })
+        .collect();
+    let (x0, _) = map.dx_range();
+    let (y0, _) = map.dy_range();
+    let mut mark = |dx: i64, dy: i64, colour: [u8; 3]| {
+        for (ox, oy) in [
+            (0, 0),
+            (-1, 0),
+            (1, 0),
+            (0, -1),
+            (0, 1),
+            (-2, 0),
+            (2, 0),
+            (0, -2),
+            (0, 2),
+        ] {
+            let (i, j) = (dx - x0 + ox, dy - y0 + oy);
+            if i >= 0 && j >= 0 && (i as usize) < w && (j as usize) < h {
+                let k = (j as usize * w + i as usize) * 3;
+                px[k..k + 3].copy_from_slice(&colour);
+            }
+        }
+    };
+    {
+        // |a| = |m × v₂|/|det| and |b| = |v₁ × m|/|det| over the map's shifts m.
+        let det = (t.v1.0 * t.v2.1 - t.v1.1 * t.v2.0).abs().max(1);
+        let (mx, my) = (w as i64, h as i64);
+        let ra = (mx * t.v2.1.abs() + my * t.v2.0.abs()) / det + 1;
+        let rb = (mx * t.v1.1.abs() + my * t.v1.0.abs()) / det + 1;
+        for a in -ra..=ra {
+            for b in -rb..=rb {
+                let (dx, dy) = (a * t.v1.0 + b * t.v2.0, a * t.v1.1 + b * t.v2.1);
+                if dx >= x0 && dx <= -x0 + w as i64 && dy >= y0 && dy <= -y0 + h as i64 {
+                    mark(dx, dy, [230, 30, 30]);
+                }
+            }
+        }
+    }
+    mark(0, 0, [30, 200, 30]);
+    surftile::io::write_png8(out, w, h, 3, &px)
 }
 
 fn run(command: Command) -> Result<()> {
@@ -656,6 +780,12 @@ fn run(command: Command) -> Result<()> {
             );
             Ok(())
         }
+        Command::Lattice {
+            image,
+            json,
+            plot,
+            raw_shape,
+        } => lattice_command(&image, json, plot.as_deref(), &raw_options(&raw_shape)?),
         Command::Demo { out_dir } => {
             let start = Instant::now();
             println!("surftile demo: writing into {}/", out_dir.display());

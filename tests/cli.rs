@@ -476,3 +476,61 @@ fn bad_roller_parameters_are_refused() {
     );
     assert_clean_failure(dir.path(), &r, "roller", "r.bank");
 }
+
+/// Issue 5's `surftile lattice`: the JSON names a basis of the synthetic lattice
+/// (40, 0)/(13, 29) it was drawn on, `--plot` writes the autocorrelation, and a texture
+/// without a lattice fails cleanly, suggesting `--stochastic` or `--lattice`.
+#[test]
+fn lattice_estimation_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (200usize, 160usize);
+    let (u, v) = ((40i64, 0i64), (13i64, 29i64));
+    let d = (u.0 * v.1 - u.1 * v.0) as f64;
+    let (us, vs) = (
+        (v.1 as f64 / d, -v.0 as f64 / d),
+        (-u.1 as f64 / d, u.0 as f64 / d),
+    );
+    let tau = std::f64::consts::TAU;
+    let data: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let (p, q) = (x * us.0 + y * us.1, x * vs.0 + y * vs.1);
+            ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.3 * (tau * (p + 2.0 * q)).cos()) as f32
+        })
+        .collect();
+    let image = surftile::Raster::from_vec(w, h, 1, data).unwrap();
+    surftile::io::write_heights(&dir.path().join("grid.npy"), &image, None).unwrap();
+    let r = surftile(
+        dir.path(),
+        &["lattice", "grid.npy", "--json", "--plot", "acf.png"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let j: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    let vec = |k: &str| (j[k][0].as_i64().unwrap(), j[k][1].as_i64().unwrap());
+    let (a, b) = (vec("v1"), vec("v2"));
+    assert!(j["goodness"].as_f64().unwrap() > 0.0);
+    // Same lattice: equal |det|, and u, v are integer combinations of a, b.
+    let det = a.0 * b.1 - a.1 * b.0;
+    assert_eq!(det.abs(), 40 * 29, "found {a:?}/{b:?}");
+    for t in [u, v] {
+        let (p, q) = (t.0 * b.1 - t.1 * b.0, a.0 * t.1 - a.1 * t.0);
+        assert!(p % det == 0 && q % det == 0, "{t:?} not on {a:?}/{b:?}");
+    }
+    let plot = std::fs::read(dir.path().join("acf.png")).unwrap();
+    assert_eq!(&plot[1..4], b"PNG");
+
+    let mut state = 7u64;
+    let noise: Vec<f32> = (0..96 * 96)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        })
+        .collect();
+    let noise = surftile::Raster::from_vec(96, 96, 1, noise).unwrap();
+    surftile::io::write_heights(&dir.path().join("noise.npy"), &noise, None).unwrap();
+    let r = surftile(dir.path(), &["lattice", "noise.npy", "--plot", "none.png"]);
+    assert_clean_failure(dir.path(), &r, "--stochastic", "none.png");
+    assert!(r.stderr.contains("--lattice"), "{}", r.stderr);
+}
