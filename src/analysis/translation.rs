@@ -1,7 +1,7 @@
 //! Translation vectors of a near-regular texture from its normalised autocorrelation
 //! (seed 002, §3.3, steps 1–7 and eq. 9).
 //!
-//! 1. Mark the local maxima of the right half of the autocorrelation γ ([`ncc`]).
+//! 1. Mark the local maxima of the right half of the autocorrelation γ ([`crate::analysis::ncc`]).
 //! 2. Form the candidate set c₁ of vectors from the origin to them.
 //! 3. Sort c₁ by ascending length.
 //! 4. For each v₁ in c₁, c₂ holds the vectors sorted after it.

@@ -285,11 +285,13 @@ impl MillingSurface {
     }
 
     /// Rows `rows` of `region` in blocks: the rings that can reach a block are found
-    /// and drawn once ([`RingModel::drawn`]) and sorted into milling order once, then
-    /// every point of the block folds that list. A ring's numbers and the fold's order
-    /// of operations are those of [`Self::eval_mm`], so each value is the bits
-    /// `height()` gives at that point. Blocks are about one support annulus wide;
-    /// where that is under [`MIN_BLOCK`] pixels, points are sampled one by one.
+    /// and drawn once ([`ring::RingModel::drawn`]) and sorted into milling order once,
+    /// then folded ring by ring over the block ([`Self::block_ring_major`]; point by
+    /// point beyond [`SPAN_LIMIT`]). A ring's numbers and the fold's order of operations
+    /// are those of [`Self::eval_mm`], so each value is the bits `height()` gives at that
+    /// point. Blocks are about one support annulus wide (and at most the band's rows
+    /// tall); where that is under [`MIN_BLOCK`] pixels, or the step is above 1 pixel
+    /// (footprint averaging), points are sampled one by one.
     fn fill_blocks(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         let m = &self.rings;
         let px_mm = region.step * self.mm_per_px;

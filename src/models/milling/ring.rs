@@ -549,7 +549,7 @@ impl RingModel {
         self.noise_amplitude * NOISE_UNIT * (a + (b - a) * f)
     }
 
-    /// Ring `d` at the points (xs[k], y) of a row (mm, at most [`SPAN`] of them): calls
+    /// Ring `d` at the points (`xs[k]`, y) of a row (mm, at most [`SPAN`] of them): calls
     /// `fold(k, value)` for each point it covers, in order. The values are those of
     /// [`Drawn::value`], bit for bit; the work runs in passes over the row (distances,
     /// shape and plane, noise), each over the points still covered, whose short
