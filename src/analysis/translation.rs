@@ -216,6 +216,25 @@ mod tests {
         }
     }
 
+    /// Eq. (9) prefers the smallest tile: on an exact lattice a doubled tile has the same
+    /// mean γ (1) over fewer multiples, so its goodness n^(α−1) is lower; a wrong
+    /// vector's is lower still.
+    #[test]
+    fn goodness_prefers_the_smallest_tile() {
+        let image = periodic(200, 180, (32, 0), (0, 24));
+        let map = autocorrelation(&image).unwrap();
+        let (g, mean) = goodness(&map, (32, 0), (0, 24));
+        let (g2, mean2) = goodness(&map, (64, 0), (0, 24));
+        let (g3, _) = goodness(&map, (32, 0), (0, 17));
+        assert!(mean > 0.99 && mean2 > 0.99, "{mean} {mean2}");
+        assert!(g > g2 && g2 > g3, "{g} {g2} {g3}");
+        assert_eq!(
+            goodness(&map, (3, 0), (0, 4)),
+            (0.0, 0.0),
+            "tile under 16 px"
+        );
+    }
+
     /// White noise has no lattice.
     #[test]
     fn noise_has_no_lattice() {
