@@ -13,31 +13,20 @@ use rustfft::num_complex::Complex64;
 use surftile::Raster;
 use surftile::analysis::{ncc, translation};
 use surftile::fft::Fft2;
+use surftile::lattice::periodic_pattern;
 
-/// A near-regular RGB texture: a different periodic pattern per channel on the lattice
-/// (37, 0)/(11, 29), plus 30% noise.
+/// A near-regular RGB texture: the periodic pattern on the lattice (37, 0)/(11, 29),
+/// scaled differently per channel, plus 30% noise.
 fn exemplar() -> Raster {
-    let (w, h) = (256usize, 256usize);
-    let (u, v) = ((37i64, 0i64), (11i64, 29i64));
-    let d = (u.0 * v.1 - u.1 * v.0) as f64;
-    let (us, vs) = (
-        (v.1 as f64 / d, -v.0 as f64 / d),
-        (-u.1 as f64 / d, u.0 as f64 / d),
-    );
-    let tau = std::f64::consts::TAU;
+    let base = periodic_pattern(256, 256, (37, 0), (11, 29));
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
-    let mut data = Vec::with_capacity(w * h * 3);
-    for i in 0..w * h {
-        let (x, y) = ((i % w) as f64, (i / w) as f64);
-        let (p, q) = (x * us.0 + y * us.1, x * vs.0 + y * vs.1);
-        for c in 0..3 {
-            let s = ((tau * p + c as f64).cos()
-                + 0.6 * (tau * q).sin() * (c as f64 - 1.0)
-                + 0.3 * (tau * (p + 2.0 * q)).cos()) as f32;
-            data.push(s + 0.3 * rng.random_range(-1.0f32..1.0));
-        }
-    }
-    Raster::from_vec(w, h, 3, data).unwrap()
+    let data = base
+        .data
+        .iter()
+        .flat_map(|&v| [v, -0.8 * v, 0.6 * v])
+        .map(|v| v + 0.3 * rng.random_range(-1.0f32..1.0))
+        .collect();
+    Raster::from_vec(256, 256, 3, data).unwrap()
 }
 
 fn bench(c: &mut Criterion) {

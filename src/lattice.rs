@@ -143,6 +143,32 @@ impl Lattice {
     }
 }
 
+/// A `w × h` one-channel pattern that repeats exactly on the lattice spanned by u and v
+/// (pixels, not collinear): cos 2πp + 0.6·sin 2πq + 0.3·cos 2π(p + 2q), with (p, q) the
+/// coordinates of the pixel in the basis (u, v). The synthetic exemplar of the lattice
+/// tests (roller, RSGF) and benches.
+pub fn periodic_pattern(w: usize, h: usize, u: (i64, i64), v: (i64, i64)) -> crate::Raster {
+    let d = (u.0 * v.1 - u.1 * v.0) as f64;
+    // Reciprocal vectors: ⟨u*, u⟩ = 1, ⟨u*, v⟩ = 0.
+    let us = (v.1 as f64 / d, -v.0 as f64 / d);
+    let vs = (-u.1 as f64 / d, u.0 as f64 / d);
+    let tau = std::f64::consts::TAU;
+    let data = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let p = x * us.0 + y * us.1;
+            let q = x * vs.0 + y * vs.1;
+            ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.3 * (tau * (p + 2.0 * q)).cos()) as f32
+        })
+        .collect();
+    crate::Raster {
+        width: w,
+        height: h,
+        channels: 1,
+        data,
+    }
+}
+
 /// True when the bases (u, v) and (u', v') span the same lattice: M = [u v]⁻¹[u' v'] is
 /// an integer matrix with det ±1 (the test ALGORITHMS.md §1 asks detection tests to use,
 /// independent of the Hermite normal form).

@@ -483,22 +483,8 @@ fn bad_roller_parameters_are_refused() {
 #[test]
 fn lattice_estimation_from_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
-    let (w, h) = (200usize, 160usize);
     let (u, v) = ((40i64, 0i64), (13i64, 29i64));
-    let d = (u.0 * v.1 - u.1 * v.0) as f64;
-    let (us, vs) = (
-        (v.1 as f64 / d, -v.0 as f64 / d),
-        (-u.1 as f64 / d, u.0 as f64 / d),
-    );
-    let tau = std::f64::consts::TAU;
-    let data: Vec<f32> = (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as f64, (i / w) as f64);
-            let (p, q) = (x * us.0 + y * us.1, x * vs.0 + y * vs.1);
-            ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.3 * (tau * (p + 2.0 * q)).cos()) as f32
-        })
-        .collect();
-    let image = surftile::Raster::from_vec(w, h, 1, data).unwrap();
+    let image = surftile::lattice::periodic_pattern(200, 160, u, v);
     surftile::io::write_heights(&dir.path().join("grid.npy"), &image, None).unwrap();
     let r = surftile(
         dir.path(),
@@ -509,13 +495,10 @@ fn lattice_estimation_from_the_command_line() {
     let vec = |k: &str| (j[k][0].as_i64().unwrap(), j[k][1].as_i64().unwrap());
     let (a, b) = (vec("v1"), vec("v2"));
     assert!(j["goodness"].as_f64().unwrap() > 0.0);
-    // Same lattice: equal |det|, and u, v are integer combinations of a, b.
-    let det = a.0 * b.1 - a.1 * b.0;
-    assert_eq!(det.abs(), 40 * 29, "found {a:?}/{b:?}");
-    for t in [u, v] {
-        let (p, q) = (t.0 * b.1 - t.1 * b.0, a.0 * t.1 - a.1 * t.0);
-        assert!(p % det == 0 && q % det == 0, "{t:?} not on {a:?}/{b:?}");
-    }
+    assert!(
+        surftile::lattice::same_lattice(u, v, a, b),
+        "found {a:?}/{b:?}"
+    );
     let plot = std::fs::read(dir.path().join("acf.png")).unwrap();
     assert_eq!(&plot[1..4], b"PNG");
 

@@ -686,23 +686,7 @@ pub fn mip_down(
 pub(crate) mod tests {
     use super::*;
 
-    /// A periodic pattern on lattice (u, v): a sum of cosines on the reciprocal lattice.
-    pub fn periodic(w: usize, h: usize, u: (i64, i64), v: (i64, i64)) -> Raster {
-        let d = (u.0 * v.1 - u.1 * v.0) as f64;
-        // Reciprocal vectors: ⟨u*, u⟩ = 1, ⟨u*, v⟩ = 0.
-        let us = (v.1 as f64 / d, -v.0 as f64 / d);
-        let vs = (-u.1 as f64 / d, u.0 as f64 / d);
-        let tau = std::f64::consts::TAU;
-        let data = (0..w * h)
-            .map(|i| {
-                let (x, y) = ((i % w) as f64, (i / w) as f64);
-                let p = x * us.0 + y * us.1;
-                let q = x * vs.0 + y * vs.1;
-                ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.3 * (tau * (p + 2.0 * q)).cos()) as f32
-            })
-            .collect();
-        Raster::from_vec(w, h, 1, data).unwrap()
-    }
+    pub use crate::lattice::periodic_pattern as periodic;
 
     /// On an exactly periodic exemplar with its true lattice, ψ ≡ 0 and the tile is the
     /// period itself: every stored texel equals the exemplar at any congruent position.

@@ -195,8 +195,8 @@ pub fn estimate(image: &Raster) -> Result<Option<Translation>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::roller::tests::periodic;
     use crate::lattice::Lattice;
+    use crate::lattice::periodic_pattern as periodic;
 
     /// The roller issue's synthetic lattices, from the same generator, are recovered
     /// exactly: the estimated pair spans the same lattice (equal Hermite normal forms).

@@ -412,10 +412,9 @@ impl MillingSurface {
                 if out2 < 0.0 {
                     continue;
                 }
-                let half_out = out2.sqrt();
                 let in2 = s_in * (1.0 - 1e-9) - dy2;
                 let row = &mut acc[(r - r0) * bw..(r - r0 + 1) * bw];
-                let mut span = |lo: f64, hi: f64| {
+                path::annulus_runs(cx, in2, out2, |lo: f64, hi: f64| {
                     let a = (col_of(lo).floor() - 1.0).max(c0 as f64);
                     let b = (col_of(hi).ceil() + 1.0).min((c1 - 1) as f64);
                     if a.is_nan() || b.is_nan() || a > b {
@@ -438,14 +437,7 @@ impl MillingSurface {
                             };
                         },
                     );
-                };
-                if in2 > 0.0 {
-                    let half_in = in2.sqrt();
-                    span(cx - half_out, cx - half_in);
-                    span(cx + half_in, cx + half_out);
-                } else {
-                    span(cx - half_out, cx + half_out);
-                }
+                });
             }
         }
     }

@@ -101,6 +101,21 @@ pub fn paper_spiral_angles(a: f64, delta: f64, n: usize) -> Vec<f64> {
     phis
 }
 
+/// The intervals of a line at distance² between r_in² and r_out² from a point of it at
+/// `c`, where `in2` = r_in² − (distance of the line)² and `out2` = r_out² − (the same)
+/// ≥ 0: one interval through c when the line misses the inner disc, two otherwise.
+#[inline(always)]
+pub(super) fn annulus_runs(c: f64, in2: f64, out2: f64, mut run: impl FnMut(f64, f64)) {
+    let half_out = out2.sqrt();
+    if in2 > 0.0 {
+        let half_in = in2.sqrt();
+        run(c - half_out, c - half_in);
+        run(c + half_in, c + half_out);
+    } else {
+        run(c - half_out, c + half_out);
+    }
+}
+
 /// A ring's nominal placement: id, centre, motion direction, (rank, position).
 pub type Nominal = ((i64, i64), f64, f64, (f64, f64), (i64, i64));
 
@@ -193,23 +208,20 @@ impl ToolPath {
             ToolPath::Parallel {
                 cos_b,
                 sin_b,
-                rho,
-                delta,
-                shift,
                 ascending,
                 zigzag,
                 reverse,
+                ..
             } => {
                 let (i, j) = id;
-                let s = i as f64 * delta + j as f64 * shift;
-                let t = j as f64 * rho;
+                let (cx, cy) = self.centre(id);
                 let forward = (zigzag && j.rem_euclid(2) == 1) == reverse;
                 let dir = if forward { 1i64 } else { -1 };
                 let rank = if ascending { j } else { -j };
                 (
                     id,
-                    s * cos_b - t * sin_b,
-                    s * sin_b + t * cos_b,
+                    cx,
+                    cy,
                     (dir as f64 * cos_b, dir as f64 * sin_b),
                     (rank, dir * i),
                 )
@@ -278,23 +290,15 @@ impl ToolPath {
                     if out2 < 0.0 {
                         continue;
                     }
-                    let half_out = out2.sqrt();
                     let base = s - j as f64 * shift;
                     let in2 = reach_in * reach_in - dt * dt;
-                    let mut run = |lo: f64, hi: f64| {
+                    annulus_runs(base, in2, out2, |lo, hi| {
                         let i0 = (lo / delta).ceil() as i64;
                         let i1 = (hi / delta).floor() as i64;
                         for i in i0..=i1 {
                             visit((i, j));
                         }
-                    };
-                    if in2 > 0.0 {
-                        let half_in = in2.sqrt();
-                        run(base - half_out, base - half_in);
-                        run(base + half_in, base + half_out);
-                    } else {
-                        run(base - half_out, base + half_out);
-                    }
+                    });
                 }
             }
             ToolPath::Spiral {
