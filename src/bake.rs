@@ -22,6 +22,7 @@ use crate::analysis::periodicity::{Detection, detect};
 use crate::analysis::resample::{DownsampleFilter, downsample};
 use crate::analysis::roller::{mip_down, required_size, roller_tiles};
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
+use crate::analysis::rsgf::RsgfOptions;
 use crate::analysis::taper::hann_taper;
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::{Error, Result};
@@ -82,6 +83,7 @@ pub struct Baker {
     lattice: Option<[(i64, i64); 2]>,
     tile: Option<[usize; 2]>,
     overlap: Option<usize>,
+    rsgf: RsgfOptions,
 }
 
 /// Builder for [`Baker`]; every setter documents its default.
@@ -163,9 +165,23 @@ impl BakerBuilder {
         self.0.overlap = Some(px);
         self
     }
+    /// RSGF: block, border, tolerance, metric and stochastic mode. Default:
+    /// [`RsgfOptions::default`] (the paper's 40 px blocks, 10 px borders, ±3 px, SSD).
+    pub fn rsgf(mut self, options: RsgfOptions) -> Self {
+        self.0.rsgf = options;
+        self
+    }
     /// Checks every parameter.
     pub fn build(self) -> Result<Baker> {
         let b = self.0;
+        if b.rsgf.stochastic && b.lattice.is_some() {
+            return Err(Error::param(
+                "lattice",
+                "given with --stochastic",
+                "one of them: stochastic mode uses v1 = (1, 0), v2 = (0, 1)",
+            ));
+        }
+        b.rsgf.params((1, 0), (0, 1)).validate()?;
         if !(1..=64).contains(&b.tiles) {
             return Err(Error::param("tiles", b.tiles, "1 to 64 tiles"));
         }
@@ -247,6 +263,7 @@ impl Baker {
             lattice: None,
             tile: None,
             overlap: None,
+            rsgf: RsgfOptions::default(),
         })
     }
 
@@ -316,6 +333,26 @@ impl Baker {
                     "an image method (rpn, adsn, roller): milling banks are baked from a TOML configuration by MillingSurface::to_bank",
                 ));
             }
+            Method::Rsgf => {
+                let (ex, spacing_um) = self.preprocess(image, source)?;
+                let base = (
+                    exemplar_info(&ex, source),
+                    spacing_um,
+                    self.seed,
+                    format!(
+                        "level={:?} downsample={} filter={:?} fill_missing={}",
+                        self.leveling, self.downsample, self.filter, self.fill_missing
+                    ),
+                );
+                return crate::analysis::rsgf::bake(
+                    &ex,
+                    &self.rsgf,
+                    self.lattice,
+                    source,
+                    base,
+                    progress,
+                );
+            }
             Method::Rpn | Method::Adsn => {}
         }
         let (ex, spacing_um) = self.preprocess(image, source)?;
@@ -367,7 +404,7 @@ impl Baker {
             let patch = match self.method {
                 Method::Adsn => asymptotic_spot_noise(&crops, pw, ph, &mut rng),
                 // The roller returned at the top of `bake`.
-                Method::Rpn | Method::Roller | Method::Milling => {
+                Method::Rpn | Method::Roller | Method::Milling | Method::Rsgf => {
                     random_phase_noise(&crops, pw, ph, &mut rng)
                 }
             };
@@ -470,6 +507,7 @@ impl Baker {
             exemplar,
             seam_costs: Vec::new(),
             milling: None,
+            rsgf: None,
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
@@ -660,6 +698,7 @@ impl Baker {
             ),
             seam_costs: rt.seam_costs,
             milling: None,
+            rsgf: None,
         };
         let luts = vec![Vec::new(); texels.len()];
         let bank = Bank {
@@ -673,7 +712,7 @@ impl Baker {
 }
 
 /// Statistics of the preprocessed exemplar, kept in the bank.
-fn exemplar_info(ex: &Raster, source: &str) -> ExemplarInfo {
+pub(crate) fn exemplar_info(ex: &Raster, source: &str) -> ExemplarInfo {
     let c = ex.channels;
     let sorted: Vec<Vec<f64>> = (0..c)
         .map(|ch| {
@@ -707,7 +746,7 @@ fn std_of(v: &[f64]) -> f64 {
 }
 
 /// Mean and standard deviation per channel of interleaved samples.
-fn channel_stats(data: &[f32], c: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn channel_stats(data: &[f32], c: usize) -> (Vec<f64>, Vec<f64>) {
     (0..c)
         .map(|ch| {
             let v: Vec<f64> = data.iter().skip(ch).step_by(c).map(|&x| x as f64).collect();

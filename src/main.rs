@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 use surftile::analysis::level::level_plane;
 use surftile::analysis::missing::fill_missing;
 use surftile::analysis::resample::DownsampleFilter;
+use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::{Bank, Method, Rule};
 use surftile::demo::run_demo;
@@ -18,6 +19,7 @@ use surftile::io::{ReadOptions, parse_shape, read_image};
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::render::{checked_size, render_to_file};
 use surftile::stats::compare;
+use surftile::stream::Metric;
 use surftile::stream::{Region, Surface};
 use surftile::{Error, Result};
 
@@ -77,7 +79,7 @@ enum Command {
         /// Roller: number of tiles with identical borders.
         #[arg(long, default_value_t = 1)]
         tiles: usize,
-        /// Roller: periodicity vectors "ux,uy;vx,vy" in pixels, instead of detection.
+        /// Roller and RSGF: periodicity vectors "ux,uy;vx,vy" in pixels, instead of detection.
         #[arg(long, allow_hyphen_values = true)]
         lattice: Option<String>,
         /// Roller: axis-aligned tile WxH in pixels, instead of detection.
@@ -86,6 +88,21 @@ enum Command {
         /// Roller: overlap (cut band) width in pixels; default: a sixth of the tile, ≥ 8.
         #[arg(long)]
         overlap: Option<usize>,
+        /// RSGF: block side in pixels.
+        #[arg(long, default_value_t = 40)]
+        block: usize,
+        /// RSGF: border (patch overlap on each side) in pixels, below half the block.
+        #[arg(long, default_value_t = 10)]
+        border: usize,
+        /// RSGF: gap candidates within ± this many pixels of a lattice multiple.
+        #[arg(long, default_value_t = 3)]
+        tolerance: usize,
+        /// RSGF: border measure of the gap filling.
+        #[arg(long, value_enum, default_value_t = Metric::Ssd)]
+        metric: Metric,
+        /// RSGF: stochastic mode, v1 = (1, 0) and v2 = (0, 1), no lattice estimation.
+        #[arg(long)]
+        stochastic: bool,
     },
     /// Render a region of the infinite surface to .png (16-bit), .tif (f32) or .npy (f32).
     Render {
@@ -413,16 +430,7 @@ fn lattice_command(
     let best = translation::best_pair(&map);
     let t = match best {
         Some(t) if t.mean_gamma >= translation::MIN_MEAN_GAMMA => t,
-        other => {
-            return Err(Error::Analysis {
-                what,
-                message: format!(
-                    "no lattice detected (the best pair's mean autocorrelation at its multiples is {:.3}, under {}): for a stochastic texture pass --stochastic, or give the vectors with --lattice \"ux,uy;vx,vy\"",
-                    other.map_or(0.0, |t| t.mean_gamma),
-                    translation::MIN_MEAN_GAMMA
-                ),
-            });
-        }
+        other => return Err(translation::no_lattice(&what, other)),
     };
     if let Some(out) = plot {
         write_lattice_plot(out, &map, t)?;
@@ -521,6 +529,11 @@ fn run(command: Command) -> Result<()> {
             lattice,
             tile,
             overlap,
+            block,
+            border,
+            tolerance,
+            metric,
+            stochastic,
         } => {
             if method == Method::Milling {
                 return bake_milling(&exemplar, spacing, seed, &out);
@@ -538,15 +551,35 @@ fn run(command: Command) -> Result<()> {
                 .fill_missing(fill_missing)
                 .taper(taper)
                 .tiles(tiles);
-            if method != Method::Roller
-                && (lattice.is_some() || tile.is_some() || overlap.is_some() || tiles != 1)
-            {
+            if method != Method::Roller && (tile.is_some() || overlap.is_some() || tiles != 1) {
                 return Err(Error::param(
                     "method",
                     method,
-                    "roller when --tiles, --lattice, --tile or --overlap is given",
+                    "roller when --tiles, --tile or --overlap is given",
                 ));
             }
+            if !matches!(method, Method::Roller | Method::Rsgf) && lattice.is_some() {
+                return Err(Error::param(
+                    "method",
+                    method,
+                    "roller or rsgf when --lattice is given",
+                ));
+            }
+            let rsgf = RsgfOptions {
+                block_px: block,
+                border_px: border,
+                tolerance_px: tolerance,
+                metric,
+                stochastic,
+            };
+            if method != Method::Rsgf && rsgf != RsgfOptions::default() {
+                return Err(Error::param(
+                    "method",
+                    method,
+                    "rsgf when --block, --border, --tolerance, --metric or --stochastic is given",
+                ));
+            }
+            builder = builder.rsgf(rsgf);
             if let Some(l) = lattice {
                 let (u, v) = parse_lattice(&l)?;
                 builder = builder.lattice(u, v);
@@ -695,6 +728,21 @@ fn run(command: Command) -> Result<()> {
                     }
                     Rule::Blend => {
                         println!("rule        blend (triangle edge {} px)", h.triangle_edge)
+                    }
+                    Rule::Rsgf => {
+                        if let Some(p) = &h.rsgf {
+                            println!(
+                                "rule        rsgf on lattice v1 = ({}, {}), v2 = ({}, {}); blocks of {} px, border {} px, tolerance ±{} px, {:?} matching",
+                                p.v1.0,
+                                p.v1.1,
+                                p.v2.0,
+                                p.v2.1,
+                                p.block_px,
+                                p.border_px,
+                                p.tolerance_px,
+                                p.metric
+                            );
+                        }
                     }
                     Rule::Toroidal => {
                         let [u, v] = h.lattice;

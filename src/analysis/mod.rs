@@ -11,5 +11,6 @@ pub mod periodicity;
 pub mod resample;
 pub mod roller;
 pub mod rpn;
+pub mod rsgf;
 pub mod taper;
 pub mod translation;

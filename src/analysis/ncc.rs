@@ -132,7 +132,7 @@ fn centred(r: &Raster, c: usize) -> (Vec<f64>, f64) {
 }
 
 /// Summed-area table with a zero first row and column: `(w + 1) × (h + 1)`.
-fn integral(v: &[f64], w: usize, h: usize, square: bool) -> Vec<f64> {
+pub(crate) fn integral(v: &[f64], w: usize, h: usize, square: bool) -> Vec<f64> {
     let mut t = vec![0.0; (w + 1) * (h + 1)];
     for y in 0..h {
         let mut row = 0.0;

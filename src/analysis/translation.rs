@@ -186,6 +186,18 @@ pub fn best_pair(map: &NccMap) -> Option<Translation> {
     best
 }
 
+/// The error for an exemplar `what` without a detectable lattice: the figure that
+/// decided it, and what to do instead.
+pub fn no_lattice(what: &str, best: Option<Translation>) -> crate::error::Error {
+    crate::error::Error::Analysis {
+        what: what.to_string(),
+        message: format!(
+            "no lattice detected (the best pair's mean autocorrelation at its multiples is {:.3}, under {MIN_MEAN_GAMMA}): for a stochastic texture pass --stochastic, or give the vectors with --lattice \"ux,uy;vx,vy\"",
+            best.map_or(0.0, |t| t.mean_gamma),
+        ),
+    }
+}
+
 /// The translation vectors of `image` (all channels, eqs. 6–8), or None for a texture
 /// without a detectable lattice.
 pub fn estimate(image: &Raster) -> Result<Option<Translation>> {

@@ -40,6 +40,9 @@ pub enum Rule {
     /// The procedural face-milling model (seed 000 §4): no tiles; the bank holds the
     /// configuration, the radial shape table and the angular noise profiles.
     Milling,
+    /// Random sampling and gap filling (seed 002 §4): no tiles; the bank holds the
+    /// exemplar (as one tile, with its mips), the lattice and the synthesis parameters.
+    Rsgf,
 }
 
 impl std::fmt::Display for Rule {
@@ -48,6 +51,7 @@ impl std::fmt::Display for Rule {
             Rule::Blend => "blend",
             Rule::Toroidal => "toroidal",
             Rule::Milling => "milling",
+            Rule::Rsgf => "rsgf",
         })
     }
 }
@@ -64,6 +68,8 @@ pub enum Method {
     Roller,
     /// Procedural face milling (seed 000 §4); the exemplar is a milling TOML file.
     Milling,
+    /// Near-regular random sampling and gap filling (seed 002 §4).
+    Rsgf,
 }
 
 impl std::fmt::Display for Method {
@@ -73,6 +79,7 @@ impl std::fmt::Display for Method {
             Method::Adsn => "adsn",
             Method::Roller => "roller",
             Method::Milling => "milling",
+            Method::Rsgf => "rsgf",
         })
     }
 }
@@ -153,6 +160,9 @@ pub struct BankHeader {
     /// Milling rule: the configuration and height adaptation.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub milling: Option<crate::models::milling::MillingBankInfo>,
+    /// RSGF rule: the synthesis parameters and the lattice.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rsgf: Option<crate::stream::RsgfParams>,
 }
 
 /// A bank in memory: header, texels per level and T⁻¹ tables per level.
@@ -180,6 +190,9 @@ impl Bank {
         }
         if h.rule == Rule::Milling {
             return self.validate_milling(what);
+        }
+        if h.rule == Rule::Rsgf {
+            return self.validate_rsgf(what);
         }
         let [w, ht] = h.tile_size;
         let toroidal = h.rule == Rule::Toroidal;
@@ -294,6 +307,53 @@ impl Bank {
                         "level {l} T⁻¹ table is not finite and non-decreasing"
                     ));
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// Validation of an RSGF bank: one tile (the exemplar) with its halvings, valid
+    /// parameters that fit it, finite texels.
+    fn validate_rsgf(&self, what: &str) -> Result<()> {
+        let h = &self.header;
+        let bad = |m: String| Err(Error::bank(what, m));
+        let Some(params) = &h.rsgf else {
+            return bad("rsgf rule without an rsgf section".into());
+        };
+        let [w, ht] = h.tile_size;
+        if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 24 {
+            return bad(format!(
+                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^24 pixels",
+                h.tiles
+            ));
+        }
+        params
+            .validate()
+            .and_then(|_| params.check_exemplar(w, ht))
+            .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
+        if h.levels.is_empty() || h.levels.len() > 14 || h.lut_size != 0 {
+            return bad(format!(
+                "{} levels and a table of {}; expected 1 to 14 levels and none",
+                h.levels.len(),
+                h.lut_size
+            ));
+        }
+        if self.texels.len() != h.levels.len() || self.luts.len() != h.levels.len() {
+            return bad("level count differs between header and data".into());
+        }
+        for (l, info) in h.levels.iter().enumerate() {
+            let expected = [w >> l, ht >> l];
+            if info.size != expected
+                || self.texels[l].len() != expected[0] * expected[1] * h.channels
+            {
+                return bad(format!(
+                    "level {l} is {:?} with {} texels; expected {expected:?}",
+                    info.size,
+                    self.texels[l].len()
+                ));
+            }
+            if self.texels[l].iter().any(|v| !v.is_finite()) {
+                return bad(format!("level {l} has non-finite texels"));
             }
         }
         Ok(())

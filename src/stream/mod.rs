@@ -9,11 +9,13 @@
 //!   NaN) samples are NaN, never a panic.
 
 mod blend;
+pub mod rsgf;
 mod toroidal;
 
 use std::ops::Range;
 
 pub use blend::BlendSurface;
+pub use rsgf::{Metric, RsgfModel, RsgfParams, RsgfSurface};
 pub use toroidal::ToroidalSurface;
 
 use crate::bank::{Bank, Rule};
@@ -27,6 +29,7 @@ pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
         Rule::Milling => Box::new(crate::models::milling::MillingSurface::from_bank(
             bank, seed,
         )?),
+        Rule::Rsgf => Box::new(RsgfSurface::from_bank(bank, seed)?),
     })
 }
 

@@ -504,6 +504,7 @@ impl MillingSurface {
                 config: self.config.clone(),
                 adaptation: self.adaptation,
             }),
+            rsgf: None,
         };
         let bank = Bank {
             header,

@@ -1,0 +1,161 @@
+//! Baking an RSGF bank (seed 002): the lattice (estimated by §3.3, given, or the
+//! stochastic unit lattice), the synthesis parameters checked against the exemplar, and
+//! the exemplar itself with its mip chain. The synthesis runs lazily at sampling time
+//! ([`crate::stream::RsgfSurface`]).
+
+use crate::analysis::ncc::autocorrelation;
+use crate::analysis::translation::{MIN_MEAN_GAMMA, best_pair, no_lattice};
+use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
+use crate::error::Result;
+use crate::raster::Raster;
+use crate::stream::{Metric, RsgfModel, RsgfParams};
+
+/// What the user asked for; the lattice is resolved by [`bake`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct RsgfOptions {
+    /// Block side B in pixels (default 40).
+    pub block_px: usize,
+    /// Border o in pixels (default 10).
+    pub border_px: usize,
+    /// Gap-candidate tolerance in pixels (default 3).
+    pub tolerance_px: usize,
+    /// Border measure (default SSD).
+    pub metric: Metric,
+    /// Stochastic mode: v₁ = (1, 0), v₂ = (0, 1), no estimation.
+    pub stochastic: bool,
+}
+
+impl Default for RsgfOptions {
+    fn default() -> Self {
+        let p = RsgfParams::stochastic();
+        RsgfOptions {
+            block_px: p.block_px,
+            border_px: p.border_px,
+            tolerance_px: p.tolerance_px,
+            metric: p.metric,
+            stochastic: false,
+        }
+    }
+}
+
+impl RsgfOptions {
+    /// The parameters on lattice (v1, v2).
+    pub fn params(&self, v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
+        RsgfParams {
+            block_px: self.block_px,
+            border_px: self.border_px,
+            tolerance_px: self.tolerance_px,
+            metric: self.metric,
+            v1,
+            v2,
+        }
+    }
+}
+
+/// Bakes the RSGF bank of a preprocessed exemplar. `lattice` overrides estimation;
+/// `info` and `bake_text` describe the exemplar and the bake for the header.
+pub(crate) fn bake(
+    ex: &Raster,
+    options: &RsgfOptions,
+    lattice: Option<[(i64, i64); 2]>,
+    source: &str,
+    header_base: (ExemplarInfo, Option<f64>, u64, String),
+    progress: &mut dyn FnMut(&str),
+) -> Result<Bank> {
+    let (w, h, c) = (ex.width, ex.height, ex.channels);
+    // Parameters that do not depend on the lattice fail before any analysis.
+    let probe = options.params((1, 0), (0, 1));
+    probe.validate()?;
+    probe.check_exemplar(w, h)?;
+    let (v1, v2) = if options.stochastic {
+        progress("stochastic mode: v1 = (1, 0), v2 = (0, 1)");
+        ((1, 0), (0, 1))
+    } else if let Some([u, v]) = lattice {
+        progress(&format!(
+            "lattice given: v1 = ({}, {}), v2 = ({}, {})",
+            u.0, u.1, v.0, v.1
+        ));
+        (u, v)
+    } else {
+        let best = best_pair(&autocorrelation(ex)?);
+        match best {
+            Some(t) if t.mean_gamma >= MIN_MEAN_GAMMA => {
+                progress(&format!(
+                    "lattice estimated: v1 = ({}, {}), v2 = ({}, {}), goodness {:.3}, mean γ {:.3}",
+                    t.v1.0, t.v1.1, t.v2.0, t.v2.1, t.goodness, t.mean_gamma
+                ));
+                (t.v1, t.v2)
+            }
+            other => return Err(no_lattice(source, other)),
+        }
+    };
+    let params = options.params(v1, v2);
+    // Building the model checks the lattice against the exemplar, as loading will.
+    let model = RsgfModel::new(ex, &params)?;
+    let levels: Vec<LevelInfo> = model
+        .levels
+        .iter()
+        .map(|l| {
+            let (mean, sigma) = crate::bake::channel_stats(&l.data, c);
+            LevelInfo {
+                size: [l.w, l.h],
+                mean,
+                sigma,
+                shift: None,
+            }
+        })
+        .collect();
+    let texels: Vec<Vec<f32>> = model.levels.iter().map(|l| l.data.clone()).collect();
+    progress(&format!(
+        "exemplar {w}×{h}×{c}, {} mip levels; blocks of {} px, border {} px, tolerance ±{} px, {:?}",
+        levels.len(),
+        params.block_px,
+        params.border_px,
+        params.tolerance_px,
+        params.metric
+    ));
+    let (exemplar, spacing_um, seed, bake_text) = header_base;
+    let header = BankHeader {
+        rule: Rule::Rsgf,
+        method: Method::Rsgf,
+        channels: c,
+        tiles: 1,
+        tile_size: [w, h],
+        lattice: [[v1.0 as f64, v1.1 as f64], [v2.0 as f64, v2.1 as f64]],
+        triangle_edge: 0.0,
+        levels,
+        spacing_um,
+        height_unit: if c == 1 && spacing_um.is_some() {
+            "um".into()
+        } else {
+            String::new()
+        },
+        seed,
+        lut_size: 0,
+        lut_z_range: 0.0,
+        exemplar,
+        bake: format!(
+            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} stochastic={} {bake_text}",
+            v1.0,
+            v1.1,
+            v2.0,
+            v2.1,
+            params.block_px,
+            params.border_px,
+            params.tolerance_px,
+            params.metric,
+            options.stochastic
+        ),
+        seam_costs: Vec::new(),
+        milling: None,
+        rsgf: Some(params),
+    };
+    let luts = vec![Vec::new(); texels.len()];
+    let bank = Bank {
+        header,
+        texels,
+        luts,
+    };
+    bank.validate("just baked")?;
+    Ok(bank)
+}

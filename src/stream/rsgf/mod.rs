@@ -1,0 +1,432 @@
+//! Near-regular synthesis by random sampling and gap filling (RSGF, seed 002 §4), as a
+//! lazy [`Surface`] (ALGORITHMS.md §4).
+//!
+//! The output plane is cut into square blocks of B pixels in a chessboard. A **random
+//! block** (I + J even) shows an exemplar patch picked by hash(seed, I, J) among those
+//! at lattice multiples of its own position (§4.1) — it depends on nothing else. A
+//! **gap block** (I + J odd) shows the patch whose border, within ±tolerance of the
+//! lattice multiples, best matches the border its four random neighbours compose (§4.2)
+//! — it depends on those four only. Patches extend o pixels past their block; across
+//! each block edge the two patches blend linearly.
+//!
+//! So every pixel is a function of a few blocks around it: any region, filled in any
+//! order, on any number of threads, gives the pixels of one sequential whole-image run
+//! ([`RsgfModel::synthesize`]) with the same seed, bit for bit. Solving a gap is the only
+//! costly step (a border match over the exemplar); solved gaps are kept in an LRU
+//! shared by all threads.
+
+mod gap;
+mod model;
+
+use std::num::NonZeroUsize;
+use std::ops::Range;
+use std::sync::Mutex;
+
+use lru::LruCache;
+use serde::{Deserialize, Serialize};
+
+pub use model::RsgfModel;
+
+use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
+use crate::bank::{Bank, Rule};
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+/// How a gap's border is matched (§4.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Metric {
+    /// Sum of squared differences over the border (eq. 10): also matches brightness.
+    Ssd,
+    /// Generalized NCC with the hole left out (eqs. 3–8): matches structure only.
+    Ncc,
+}
+
+/// RSGF synthesis parameters (all lengths in exemplar pixels).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RsgfParams {
+    /// Block side B. Default 40 (the paper's).
+    pub block_px: usize,
+    /// Border o that each patch extends past its block, for matching and blending.
+    /// Default 10 (the paper's); below B/2.
+    pub border_px: usize,
+    /// Gap candidates lie within ± this many pixels (per axis) of a lattice multiple.
+    /// Default 3 (the paper's).
+    pub tolerance_px: usize,
+    /// Border measure of the gap filling. Default SSD.
+    pub metric: Metric,
+    /// Translation vectors v₁, v₂ in pixels ((1, 0), (0, 1) in stochastic mode).
+    pub v1: (i64, i64),
+    /// See `v1`.
+    pub v2: (i64, i64),
+}
+
+/// Largest block side accepted.
+pub const MAX_BLOCK: usize = 1024;
+
+impl RsgfParams {
+    /// The paper's settings (40 px blocks, 10 px borders, ±3 px, SSD) on lattice (v1, v2).
+    pub fn new(v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
+        RsgfParams {
+            block_px: 40,
+            border_px: 10,
+            tolerance_px: 3,
+            metric: Metric::Ssd,
+            v1,
+            v2,
+        }
+    }
+
+    /// The paper's settings in stochastic mode: v₁ = (1, 0), v₂ = (0, 1), so every
+    /// position is a candidate.
+    pub fn stochastic() -> RsgfParams {
+        RsgfParams::new((1, 0), (0, 1))
+    }
+
+    /// Checks the parameters on their own.
+    pub fn validate(&self) -> Result<()> {
+        if !(2..=MAX_BLOCK).contains(&self.block_px) {
+            return Err(Error::param(
+                "block",
+                self.block_px,
+                format!("2 to {MAX_BLOCK} pixels"),
+            ));
+        }
+        if self.border_px == 0 || 2 * self.border_px >= self.block_px {
+            return Err(Error::param(
+                "border",
+                self.border_px,
+                format!(
+                    "1 pixel to less than half the block ({} px): borders of neighbouring blocks must not meet",
+                    self.block_px
+                ),
+            ));
+        }
+        if self.tolerance_px > 64 {
+            return Err(Error::param(
+                "tolerance",
+                self.tolerance_px,
+                "0 to 64 pixels",
+            ));
+        }
+        crate::lattice::Lattice::from_basis(self.v1, self.v2)?;
+        Ok(())
+    }
+
+    /// Checks that a `w × h` exemplar holds a patch of B + 2·o pixels.
+    pub fn check_exemplar(&self, w: usize, h: usize) -> Result<()> {
+        let ext = self.block_px + 2 * self.border_px;
+        if self.block_px > w.min(h) {
+            return Err(Error::param(
+                "block",
+                self.block_px,
+                format!("at most the exemplar's smaller side ({w}×{h})"),
+            ));
+        }
+        if ext > w.min(h) {
+            return Err(Error::param(
+                "block + 2 × border",
+                ext,
+                format!(
+                    "at most the exemplar's smaller side ({w}×{h}): a patch is the block plus its border on each side"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Solved gaps kept by default.
+pub const DEFAULT_CACHE_BLOCKS: usize = 1 << 14;
+
+/// The lazy RSGF surface: an [`RsgfModel`], a seed, and the LRU of solved gaps.
+pub struct RsgfSurface {
+    model: RsgfModel,
+    seed: u32,
+    cache: Mutex<LruCache<(i64, i64), u32>>,
+}
+
+impl RsgfSurface {
+    /// The RSGF surface of `exemplar` with `params`, placed with `seed`.
+    pub fn new(exemplar: &Raster, params: &RsgfParams, seed: u32) -> Result<RsgfSurface> {
+        Ok(RsgfSurface::from_model(
+            RsgfModel::new(exemplar, params)?,
+            seed,
+        ))
+    }
+
+    /// The surface of a model.
+    pub fn from_model(model: RsgfModel, seed: u32) -> RsgfSurface {
+        let cap = NonZeroUsize::new(DEFAULT_CACHE_BLOCKS).unwrap_or(NonZeroUsize::MIN);
+        RsgfSurface {
+            model,
+            seed,
+            cache: Mutex::new(LruCache::new(cap)),
+        }
+    }
+
+    /// The surface an RSGF bank describes (rule `rsgf`).
+    pub fn from_bank(bank: &Bank, seed: u32) -> Result<RsgfSurface> {
+        let h = &bank.header;
+        let (Rule::Rsgf, Some(params)) = (h.rule, &h.rsgf) else {
+            return Err(Error::bank(
+                "RSGF surface",
+                format!("a {} bank; expected the rsgf rule", h.rule),
+            ));
+        };
+        let [w, ht] = h.tile_size;
+        let ex = Raster::from_vec(w, ht, h.channels, bank.texels[0].clone())?;
+        RsgfSurface::new(&ex, params, seed)
+    }
+
+    /// Keeps at most `blocks` solved gaps (≥ 1).
+    pub fn with_cache_capacity(self, blocks: usize) -> RsgfSurface {
+        let cap = NonZeroUsize::new(blocks).unwrap_or(NonZeroUsize::MIN);
+        RsgfSurface {
+            cache: Mutex::new(LruCache::new(cap)),
+            ..self
+        }
+    }
+
+    /// The model behind the surface.
+    pub fn model(&self) -> &RsgfModel {
+        &self.model
+    }
+
+    /// The sequential whole-image RSGF of `width × height` pixels from the origin, with
+    /// this surface's seed: the reference every fill equals.
+    pub fn reference(&self, width: usize, height: usize) -> Raster {
+        self.model.synthesize(self.seed, width, height)
+    }
+
+    /// Position of block (i, j): hashed for a random block, solved (or remembered) for
+    /// a gap.
+    pub fn pick(&self, i: i64, j: i64) -> u32 {
+        if RsgfModel::is_random(i, j) {
+            return self.model.random_pick(self.seed, i, j);
+        }
+        if let Some(&q) = self.lock().get(&(i, j)) {
+            return q;
+        }
+        let q = self.model.solve_gap(self.seed, i, j);
+        self.lock().put((i, j), q);
+        q
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, LruCache<(i64, i64), u32>> {
+        self.cache.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The picks of blocks [i0, i1] × [j0, j1], row-major, gaps solved on `threads`
+    /// threads (each once; remembered ones taken from the cache).
+    fn picks(&self, (i0, i1): (i64, i64), (j0, j1): (i64, i64), threads: usize) -> Blocks {
+        let gw = (i1 - i0 + 1) as usize;
+        let gh = (j1 - j0 + 1) as usize;
+        let mut grid = vec![0u32; gw * gh];
+        let mut todo = Vec::new();
+        {
+            let mut cache = self.lock();
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let at = (j - j0) as usize * gw + (i - i0) as usize;
+                    if RsgfModel::is_random(i, j) {
+                        grid[at] = self.model.random_pick(self.seed, i, j);
+                    } else if let Some(&q) = cache.get(&(i, j)) {
+                        grid[at] = q;
+                    } else {
+                        todo.push((at, i, j));
+                    }
+                }
+            }
+        }
+        let solved: Vec<(usize, u32)> = if threads <= 1 || todo.len() < 2 {
+            todo.iter()
+                .map(|&(at, i, j)| (at, self.model.solve_gap(self.seed, i, j)))
+                .collect()
+        } else {
+            let next = std::sync::atomic::AtomicUsize::new(0);
+            let parts = crossbeam::scope(|s| {
+                let handles: Vec<_> = (0..threads.min(todo.len()))
+                    .map(|_| {
+                        s.spawn(|_| {
+                            let mut mine = Vec::new();
+                            loop {
+                                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                                let Some(&(at, i, j)) = todo.get(k) else {
+                                    break;
+                                };
+                                mine.push((at, self.model.solve_gap(self.seed, i, j)));
+                            }
+                            mine
+                        })
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .flat_map(|h| h.join().unwrap_or_default())
+                    .collect::<Vec<_>>()
+            });
+            parts.unwrap_or_default()
+        };
+        let mut cache = self.lock();
+        for &(at, q) in &solved {
+            grid[at] = q;
+            let i = i0 + (at % gw) as i64;
+            let j = j0 + (at / gw) as i64;
+            cache.put((i, j), q);
+        }
+        Blocks { i0, j0, gw, grid }
+    }
+
+    /// Whether `region` samples integer pixels at step 1 (the block-wise fast path).
+    fn pixel_aligned(region: &Region) -> Option<(i64, i64)> {
+        let (x, y) = (region.x_at(0), region.y_at(0));
+        (region.step == 1.0 && x.fract() == 0.0 && y.fract() == 0.0).then_some((x as i64, y as i64))
+    }
+
+    /// Rows `rows` of an aligned region whose first pixel is (x0, y0), from `blocks`.
+    fn compose_rows(
+        &self,
+        blocks: &Blocks,
+        (x0, y0): (i64, i64),
+        width: usize,
+        rows: Range<usize>,
+        out: &mut [f32],
+    ) {
+        let c = self.model.c;
+        let mut lookup = |i: i64, j: i64| blocks.get(i, j);
+        for (r, row) in rows.enumerate() {
+            let py = y0 + row as i64;
+            for col in 0..width {
+                let at = (r * width + col) * c;
+                self.model
+                    .pixel(x0 + col as i64, py, &mut lookup, &mut out[at..at + c]);
+            }
+        }
+    }
+}
+
+/// Block positions over a rectangle of blocks.
+struct Blocks {
+    i0: i64,
+    j0: i64,
+    gw: usize,
+    grid: Vec<u32>,
+}
+
+impl Blocks {
+    #[inline]
+    fn get(&self, i: i64, j: i64) -> u32 {
+        self.grid[(j - self.j0) as usize * self.gw + (i - self.i0) as usize]
+    }
+}
+
+impl Surface for RsgfSurface {
+    fn channels(&self) -> usize {
+        self.model.c
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        let c = self.model.c;
+        if !in_range(x, y) {
+            out[..c].fill(f32::NAN);
+            return;
+        }
+        let mut pick = |i: i64, j: i64| self.pick(i, j);
+        let (level, t) = mip_level(footprint, self.model.levels.len());
+        if footprint > 1.0 && (level > 0 || t > 0.0) {
+            let mut a = [0.0f32; 4];
+            self.model.sample_level(x, y, level, &mut pick, &mut a);
+            if t > 0.0 {
+                let mut b = [0.0f32; 4];
+                self.model.sample_level(x, y, level + 1, &mut pick, &mut b);
+                for k in 0..c {
+                    a[k] += t * (b[k] - a[k]);
+                }
+            }
+            out[..c].copy_from_slice(&a[..c]);
+            return;
+        }
+        // SAFETY: in_range bounds both coordinates by 2⁵².
+        let ((ix, fx), (iy, fy)) = unsafe { (floor_split(x), floor_split(y)) };
+        if fx == 0.0 && fy == 0.0 {
+            self.model.pixel(ix, iy, &mut pick, out);
+            return;
+        }
+        let mut v = [[0.0f32; 4]; 4];
+        for (k, (dx, dy)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
+            self.model.pixel(ix + dx, iy + dy, &mut pick, &mut v[k]);
+        }
+        let (fx, fy) = (fx as f32, fy as f32);
+        for k in 0..c {
+            let top = v[0][k] + fx * (v[1][k] - v[0][k]);
+            let bottom = v[2][k] + fx * (v[3][k] - v[2][k]);
+            out[k] = top + fy * (bottom - top);
+        }
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let Some((x0, y0)) = Self::pixel_aligned(region) else {
+            return fill_rows_by_sample(self, region, rows, out);
+        };
+        if rows.is_empty() {
+            return;
+        }
+        let m = &self.model;
+        let xr = m.block_range(x0, x0 + region.width as i64 - 1);
+        let yr = m.block_range(y0 + rows.start as i64, y0 + rows.end as i64 - 1);
+        let blocks = self.picks(xr, yr, 1);
+        self.compose_rows(&blocks, (x0, y0), region.width, rows, out);
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        let threads = super::default_threads();
+        let Some((x0, y0)) = Self::pixel_aligned(region) else {
+            return super::fill_parallel(self, region, out, threads);
+        };
+        region.validate()?;
+        let c = self.model.c;
+        let expected = region
+            .len()
+            .checked_mul(c)
+            .ok_or_else(|| Error::Limits(format!("region {}×{}", region.width, region.height)))?;
+        if out.len() != expected {
+            return Err(Error::param(
+                "output buffer length",
+                out.len(),
+                format!("{expected} = {}×{}×{c}", region.width, region.height),
+            ));
+        }
+        let m = &self.model;
+        let xr = m.block_range(x0, x0 + region.width as i64 - 1);
+        let yr = m.block_range(y0, y0 + region.height as i64 - 1);
+        let blocks_n = (xr.1 - xr.0 + 1) as u128 * (yr.1 - yr.0 + 1) as u128;
+        if blocks_n > 1 << 26 {
+            return Err(Error::Limits(format!(
+                "an RSGF fill over {blocks_n} blocks (at most 2^26)"
+            )));
+        }
+        let blocks = self.picks(xr, yr, threads);
+        // Compose in bands of rows, on all threads.
+        let band = 16usize;
+        let band_len = band * region.width * c;
+        let chunks: Vec<(usize, &mut [f32])> = out.chunks_mut(band_len).enumerate().collect();
+        let queue = crossbeam::queue::ArrayQueue::new(chunks.len().max(1));
+        for ch in chunks {
+            let _ = queue.push(ch);
+        }
+        crossbeam::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| {
+                    while let Some((b, chunk)) = queue.pop() {
+                        let start = b * band;
+                        let end = (start + band).min(region.height);
+                        self.compose_rows(&blocks, (x0, y0), region.width, start..end, chunk);
+                    }
+                });
+            }
+        })
+        .map_err(|_| Error::Unsupported("an RSGF fill worker panicked".into()))?;
+        Ok(())
+    }
+}

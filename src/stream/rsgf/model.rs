@@ -1,0 +1,412 @@
+//! The RSGF model: block geometry, the tables of similar patches, random picks, the
+//! composition of blocks into pixels, and the sequential whole-image reference
+//! (seed 002 §4; ALGORITHMS.md §4).
+//!
+//! **Blocks.** Output block (I, J) covers [I·B, (I+1)·B) × [J·B, (J+1)·B); its patch is
+//! the exemplar square of side E = B + 2·o whose top-left corner is the block's
+//! *position* q, laid on the output with its corner at the block's *origin*
+//! (I·B − o, J·B − o). Neighbouring patches overlap by 2·o pixels across each block edge.
+//!
+//! **Similar patches** (§4.1). Positions whose offset from the origin is a lattice vector
+//! a·v₁ + b·v₂ hold the "same" part of the regular structure. The lattice's Hermite
+//! normal form (ALGORITHMS.md §1) turns "offset is a lattice vector" into "same residue",
+//! so every position of the exemplar is filed once, under its residue, when the model is
+//! built; a block then finds its candidates in O(1). A residue with no position in the
+//! exemplar (a lattice cell larger than the room left for patches) borrows those of the
+//! nearest residues, ring by ring in Chebyshev distance, so every block has candidates.
+
+use crate::error::{Error, Result};
+use crate::hash::hash_cell;
+use crate::lattice::Lattice;
+use crate::raster::Raster;
+
+use super::RsgfParams;
+use super::gap::GapTables;
+
+/// Hash stream of the random picks (ASCII "RSGF").
+const STREAM_RANDOM: u32 = 0x5253_4746;
+
+/// Smallest mip level side kept.
+const MIN_LEVEL_SIDE: usize = 4;
+
+/// The exemplar at one mip level: `w × h × channels`, interleaved.
+pub(crate) struct Level {
+    pub w: usize,
+    pub h: usize,
+    pub data: Vec<f32>,
+}
+
+/// Lists of positions (indices qy·nx + qx), one per residue, packed (CSR).
+struct Lists {
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Lists {
+    fn get(&self, r: usize) -> &[u32] {
+        &self.items[self.start[r] as usize..self.start[r + 1] as usize]
+    }
+}
+
+/// Everything a pick and a pixel need, built once from the exemplar.
+pub struct RsgfModel {
+    pub(crate) params: RsgfParams,
+    /// Channels.
+    pub(crate) c: usize,
+    /// Exemplar mip chain, level 0 first.
+    pub(crate) levels: Vec<Level>,
+    pub(crate) lattice: Lattice,
+    /// Block side B and border o (a patch is E = B + 2·o pixels square).
+    pub(crate) b: i64,
+    pub(crate) o: i64,
+    /// Patch positions per row: W − E + 1.
+    pub(crate) nx: usize,
+    /// Positions filed by residue, exactly.
+    exact: Lists,
+    /// As `exact`, with empty residues replaced by their nearest non-empty ones.
+    near: Lists,
+    pub(crate) gap: GapTables,
+}
+
+impl RsgfModel {
+    /// Builds the model of `exemplar` (finite values, any channel count) with `params`.
+    pub fn new(exemplar: &Raster, params: &RsgfParams) -> Result<RsgfModel> {
+        params.validate()?;
+        params.check_exemplar(exemplar.width, exemplar.height)?;
+        if exemplar.data.iter().any(|v| !v.is_finite()) {
+            return Err(Error::param(
+                "RSGF exemplar",
+                "(NaN or infinite samples)",
+                "finite values: fill missing points first",
+            ));
+        }
+        let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+        let lattice = Lattice::from_basis(params.v1, params.v2)?;
+        let cells = lattice.a as u128 * lattice.c as u128;
+        if cells > (w * h) as u128 {
+            return Err(Error::param(
+                "lattice",
+                format!(
+                    "({},{});({},{}) with a cell of {cells} px",
+                    params.v1.0, params.v1.1, params.v2.0, params.v2.1
+                ),
+                format!(
+                    "a cell no larger than the {w}×{h} exemplar (it must show at least one period)"
+                ),
+            ));
+        }
+        let (b, o) = (params.block_px as i64, params.border_px as i64);
+        let ext = params.block_px + 2 * params.border_px;
+        let (nx, ny) = (w + 1 - ext, h + 1 - ext);
+        let residues = cells as usize;
+        let residue_of = |qx: i64, qy: i64| {
+            let (_, (rx, ry)) = lattice.reduce((qx, qy));
+            (ry * lattice.a + rx) as usize
+        };
+        // Exact lists: every position under its residue, in position order.
+        let mut count = vec![0u32; residues + 1];
+        for qy in 0..ny {
+            for qx in 0..nx {
+                count[residue_of(qx as i64, qy as i64) + 1] += 1;
+            }
+        }
+        for r in 0..residues {
+            count[r + 1] += count[r];
+        }
+        let mut items = vec![0u32; nx * ny];
+        let mut fill = count.clone();
+        for qy in 0..ny {
+            for qx in 0..nx {
+                let r = residue_of(qx as i64, qy as i64);
+                items[fill[r] as usize] = (qy * nx + qx) as u32;
+                fill[r] += 1;
+            }
+        }
+        let exact = Lists {
+            start: count,
+            items,
+        };
+        // Near lists: an empty residue takes the positions of the residues at the
+        // smallest Chebyshev offset d that has any.
+        let mut near_start = Vec::with_capacity(residues + 1);
+        let mut near_items = Vec::new();
+        near_start.push(0u32);
+        for r in 0..residues {
+            let list = exact.get(r);
+            if !list.is_empty() {
+                near_items.extend_from_slice(list);
+            } else {
+                let (rx, ry) = ((r as i64) % lattice.a, (r as i64) / lattice.a);
+                let mut found: Vec<u32> = Vec::new();
+                let mut d = 1i64;
+                while found.is_empty() {
+                    for dy in -d..=d {
+                        for dx in -d..=d {
+                            if dx.abs().max(dy.abs()) == d {
+                                found.extend_from_slice(exact.get(residue_of(rx + dx, ry + dy)));
+                            }
+                        }
+                    }
+                    d += 1;
+                }
+                found.sort_unstable();
+                found.dedup();
+                near_items.extend_from_slice(&found);
+            }
+            let end = u32::try_from(near_items.len())
+                .map_err(|_| Error::Limits("RSGF similar-patch table over 2^32 entries".into()))?;
+            near_start.push(end);
+        }
+        let near = Lists {
+            start: near_start,
+            items: near_items,
+        };
+        let levels = mip_chain(exemplar);
+        let gap = GapTables::new(exemplar, params);
+        Ok(RsgfModel {
+            params: params.clone(),
+            c,
+            levels,
+            lattice,
+            b,
+            o,
+            nx,
+            exact,
+            near,
+            gap,
+        })
+    }
+
+    /// Residue index of the integer point p.
+    pub(crate) fn residue(&self, p: (i64, i64)) -> usize {
+        let (_, (rx, ry)) = self.lattice.reduce(p);
+        (ry * self.lattice.a + rx) as usize
+    }
+
+    /// Positions of residue r (possibly none): those whose offset from a point of
+    /// that residue is exactly a lattice vector.
+    pub(crate) fn exact_list(&self, r: usize) -> &[u32] {
+        self.exact.get(r)
+    }
+
+    /// Positions similar to p: the exact ones, or the nearest where there are none.
+    pub(crate) fn near_candidates(&self, p: (i64, i64)) -> &[u32] {
+        self.near.get(self.residue(p))
+    }
+
+    /// The origin (top-left of the patch) of block (i, j) in output pixels.
+    #[inline]
+    pub(crate) fn origin(&self, i: i64, j: i64) -> (i64, i64) {
+        (i * self.b - self.o, j * self.b - self.o)
+    }
+
+    /// The first and last block whose patch reaches pixels s0 ..= s1 along one axis.
+    #[inline]
+    pub(crate) fn block_range(&self, s0: i64, s1: i64) -> (i64, i64) {
+        (
+            (s0 - self.o).div_euclid(self.b),
+            (s1 + self.o).div_euclid(self.b),
+        )
+    }
+
+    /// Whether block (i, j) is a random block (I + J even) rather than a gap.
+    #[inline]
+    pub fn is_random(i: i64, j: i64) -> bool {
+        (i.wrapping_add(j)) & 1 == 0
+    }
+
+    /// The position of random block (i, j): one of its similar positions, chosen by
+    /// hash(seed, i, j) (§4.1).
+    pub fn random_pick(&self, seed: u32, i: i64, j: i64) -> u32 {
+        let list = self.near_candidates(self.origin(i, j));
+        let h = hash_cell(seed, i, j, STREAM_RANDOM)[0];
+        list[((h as u64 * list.len() as u64) >> 32) as usize]
+    }
+
+    /// Position index → (qx, qy).
+    #[inline]
+    pub(crate) fn position(&self, q: u32) -> (usize, usize) {
+        (q as usize % self.nx, q as usize / self.nx)
+    }
+
+    /// The blocks that cover integer coordinate `s` along one axis, with their linear
+    /// blending weights: one block of weight 1 inside, two across the 2·o pixels around
+    /// an edge (weight (k + ½)/(2·o) for the block after it, k = 0 … 2·o − 1).
+    #[inline]
+    pub(crate) fn axis(&self, s: i64) -> [(i64, f32); 2] {
+        let i = s.div_euclid(self.b);
+        let u = s - i * self.b;
+        let (edge_block, k) = if 2 * u < self.b {
+            (i, u + self.o)
+        } else {
+            (i + 1, u - self.b + self.o)
+        };
+        if k < 0 {
+            [(edge_block - 1, 1.0), (edge_block, 0.0)]
+        } else if k >= 2 * self.o {
+            [(edge_block, 1.0), (edge_block - 1, 0.0)]
+        } else {
+            let wr = (k as f32 + 0.5) / (2 * self.o) as f32;
+            [(edge_block - 1, 1.0 - wr), (edge_block, wr)]
+        }
+    }
+
+    /// As [`RsgfModel::axis`] for a real coordinate (prefiltered samples).
+    pub(crate) fn axis_f(&self, s: f64) -> [(i64, f32); 2] {
+        let bf = self.b as f64;
+        let edge_block = (s / bf).round() as i64;
+        let t = s - edge_block as f64 * bf + self.o as f64 + 0.5;
+        let wr = (t / (2 * self.o) as f64).clamp(0.0, 1.0) as f32;
+        [(edge_block - 1, 1.0 - wr), (edge_block, wr)]
+    }
+
+    /// Channel values of pixel (px, py), from the positions `pick(i, j)` of the blocks
+    /// around it. The definition every fill must reproduce bit for bit.
+    pub(crate) fn pixel(
+        &self,
+        px: i64,
+        py: i64,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        out: &mut [f32],
+    ) {
+        let c = self.c;
+        let l0 = &self.levels[0];
+        out[..c].fill(0.0);
+        for (j, wy) in self.axis(py) {
+            if wy == 0.0 {
+                continue;
+            }
+            for (i, wx) in self.axis(px) {
+                if wx == 0.0 {
+                    continue;
+                }
+                let (qx, qy) = self.position(pick(i, j));
+                let (ox, oy) = self.origin(i, j);
+                let ex = qx + (px - ox) as usize;
+                let ey = qy + (py - oy) as usize;
+                let w = wy * wx;
+                let at = (ey * l0.w + ex) * c;
+                for (o, v) in out[..c].iter_mut().zip(&l0.data[at..at + c]) {
+                    *o += w * v;
+                }
+            }
+        }
+    }
+
+    /// Channel values at real (x, y) from mip `level` (bilinear in the level, blocks
+    /// blended with real-valued weights): the prefiltered view of zoomed-out samples.
+    pub(crate) fn sample_level(
+        &self,
+        x: f64,
+        y: f64,
+        level: usize,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        out: &mut [f32],
+    ) {
+        let c = self.c;
+        let lv = &self.levels[level];
+        let scale = 1.0 / (1u64 << level) as f64;
+        let centre = ((1u64 << level) as f64 - 1.0) / 2.0;
+        out[..c].fill(0.0);
+        for (j, wy) in self.axis_f(y) {
+            if wy == 0.0 {
+                continue;
+            }
+            for (i, wx) in self.axis_f(x) {
+                if wx == 0.0 {
+                    continue;
+                }
+                let (qx, qy) = self.position(pick(i, j));
+                let (ox, oy) = self.origin(i, j);
+                let ex = (qx as f64 + (x - ox as f64) - centre) * scale;
+                let ey = (qy as f64 + (y - oy as f64) - centre) * scale;
+                let w = wy * wx;
+                bilinear_add(lv, c, ex, ey, w, out);
+            }
+        }
+    }
+
+    /// The sequential whole-image RSGF (§4) of `width × height` pixels from the origin:
+    /// every random block, then every gap in raster order, then every pixel by
+    /// [`RsgfModel::pixel`]. The slow reference that streamed fills are tested against.
+    pub fn synthesize(&self, seed: u32, width: usize, height: usize) -> Raster {
+        let (i0, i1) = self.block_range(0, width as i64 - 1);
+        let (j0, j1) = self.block_range(0, height as i64 - 1);
+        let gw = (i1 - i0 + 1) as usize;
+        let gh = (j1 - j0 + 1) as usize;
+        let mut grid = vec![u32::MAX; gw * gh];
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                if Self::is_random(i, j) {
+                    grid[(j - j0) as usize * gw + (i - i0) as usize] = self.random_pick(seed, i, j);
+                }
+            }
+        }
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                if !Self::is_random(i, j) {
+                    grid[(j - j0) as usize * gw + (i - i0) as usize] = self.solve_gap(seed, i, j);
+                }
+            }
+        }
+        let mut out = Raster::zeros(width, height, self.c);
+        let c = self.c;
+        let mut lookup = |i: i64, j: i64| grid[(j - j0) as usize * gw + (i - i0) as usize];
+        for y in 0..height {
+            for x in 0..width {
+                let at = (y * width + x) * c;
+                self.pixel(x as i64, y as i64, &mut lookup, &mut out.data[at..at + c]);
+            }
+        }
+        out
+    }
+}
+
+/// Adds `w ·` the bilinear sample of level `lv` at texel coordinates (x, y) (clamped
+/// to the level) to `out`.
+fn bilinear_add(lv: &Level, c: usize, x: f64, y: f64, w: f32, out: &mut [f32]) {
+    let xm = (lv.w - 1) as f64;
+    let ym = (lv.h - 1) as f64;
+    let (x, y) = (x.clamp(0.0, xm), y.clamp(0.0, ym));
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(lv.w - 1), (y0 + 1).min(lv.h - 1));
+    let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+    let at = |xx: usize, yy: usize, ch: usize| lv.data[(yy * lv.w + xx) * c + ch];
+    for (ch, o) in out[..c].iter_mut().enumerate() {
+        let top = at(x0, y0, ch) + fx * (at(x1, y0, ch) - at(x0, y0, ch));
+        let bottom = at(x0, y1, ch) + fx * (at(x1, y1, ch) - at(x0, y1, ch));
+        *o += w * (top + fy * (bottom - top));
+    }
+}
+
+/// The exemplar and its 2×2 box-filtered halvings down to [`MIN_LEVEL_SIDE`].
+pub(crate) fn mip_chain(exemplar: &Raster) -> Vec<Level> {
+    let c = exemplar.channels;
+    let mut levels = vec![Level {
+        w: exemplar.width,
+        h: exemplar.height,
+        data: exemplar.data.clone(),
+    }];
+    loop {
+        let prev = &levels[levels.len() - 1];
+        let (w, h) = (prev.w / 2, prev.h / 2);
+        if w < MIN_LEVEL_SIDE || h < MIN_LEVEL_SIDE {
+            break;
+        }
+        let mut data = vec![0.0f32; w * h * c];
+        for y in 0..h {
+            for x in 0..w {
+                for ch in 0..c {
+                    let at = |xx: usize, yy: usize| prev.data[(yy * prev.w + xx) * c + ch];
+                    data[(y * w + x) * c + ch] = 0.25
+                        * (at(2 * x, 2 * y)
+                            + at(2 * x + 1, 2 * y)
+                            + at(2 * x, 2 * y + 1)
+                            + at(2 * x + 1, 2 * y + 1));
+                }
+            }
+        }
+        levels.push(Level { w, h, data });
+    }
+    levels
+}

@@ -1,0 +1,503 @@
+//! RSGF (seed 002 §4) as a streamed surface: equivalence with the sequential whole-image
+//! run, the gap search against a brute-force twin, quality on near-regular inputs, the
+//! bank, and bad input.
+
+mod common;
+
+use common::repo;
+use surftile::Raster;
+use surftile::analysis::rsgf::RsgfOptions;
+use surftile::bake::Baker;
+use surftile::bank::Bank;
+use surftile::io::{ReadOptions, read_image};
+use surftile::lattice::{Lattice, periodic_pattern};
+use surftile::stats::{height_stats, seam_score};
+use surftile::stream::{Metric, Region, RsgfModel, RsgfParams, RsgfSurface, Surface, open};
+
+/// A near-regular `w × h × channels` exemplar on lattice (u, v): the shared periodic
+/// pattern, plus smooth noise of 0.35 its amplitude (the "irregularities"), plus, in
+/// further channels, shifted and rescaled copies.
+fn near_regular(w: usize, h: usize, u: (i64, i64), v: (i64, i64), channels: usize) -> Raster {
+    let base = periodic_pattern(w, h, u, v);
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut white = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let noise: Vec<f64> = (0..w * h).map(|_| white()).collect();
+    // 5×5 box blur, clamped at the edges.
+    let smooth = |x: usize, y: usize| {
+        let mut s = 0.0;
+        for dy in -2i64..=2 {
+            for dx in -2i64..=2 {
+                let xx = (x as i64 + dx).clamp(0, w as i64 - 1) as usize;
+                let yy = (y as i64 + dy).clamp(0, h as i64 - 1) as usize;
+                s += noise[yy * w + xx];
+            }
+        }
+        s / 25.0 * 5.0
+    };
+    let mut data = vec![0.0f32; w * h * channels];
+    for y in 0..h {
+        for x in 0..w {
+            let p = base.get(x, y, 0) as f64 + 0.35 * 2.0 * smooth(x, y);
+            for c in 0..channels {
+                let sx = (x + 5 * c) % w;
+                data[(y * w + x) * channels + c] = (p * (1.0 - 0.2 * c as f64)
+                    + 0.1 * base.get(sx, y, 0) as f64 * c as f64)
+                    as f32;
+            }
+        }
+    }
+    Raster::from_vec(w, h, channels, data).unwrap()
+}
+
+/// The `w × h` window at (x, y) of a raster.
+fn window(r: &Raster, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
+    r.crop(x, y, w, h).unwrap().data
+}
+
+/// Bitwise equality with a pointer to the first difference.
+fn assert_same_bits(got: &[f32], want: &[f32], what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}: length");
+    if let Some(k) = (0..got.len()).find(|&k| got[k].to_bits() != want[k].to_bits()) {
+        panic!("{what}: first difference at {k}: {} vs {}", got[k], want[k]);
+    }
+}
+
+/// Any region, filled in any order, on any thread count, with any cache size, equals
+/// the sequential whole-image RSGF with the same seed, bit for bit — on a lattice, in
+/// stochastic mode, with NCC matching, in colour.
+#[test]
+fn streamed_regions_equal_the_sequential_reference() {
+    let (u, v) = ((23, 0), (9, 19));
+    let cases = [
+        (
+            "lattice, SSD, grey",
+            near_regular(128, 128, u, v, 1),
+            RsgfParams::new(u, v),
+        ),
+        (
+            "stochastic, SSD, grey",
+            near_regular(100, 90, u, v, 1),
+            RsgfParams::stochastic(),
+        ),
+        (
+            "lattice, NCC, colour",
+            near_regular(128, 112, u, v, 3),
+            RsgfParams {
+                metric: Metric::Ncc,
+                block_px: 32,
+                border_px: 6,
+                ..RsgfParams::new(u, v)
+            },
+        ),
+    ];
+    for (name, ex, params) in cases {
+        let c = ex.channels;
+        let surface = RsgfSurface::new(&ex, &params, 11).unwrap();
+        let (rw, rh) = (230, 200);
+        let reference = surface.reference(rw, rh);
+        // Four sub-regions, each starting mid-block, filled in reverse order by a
+        // surface with a tiny cache (evictions) and single-threaded rows, then by the
+        // parallel fill of a fresh surface.
+        let regions = [
+            (3, 5, 97, 61),
+            (150, 17, 80, 120),
+            (41, 133, 150, 67),
+            (0, 0, 230, 200),
+        ];
+        let small = RsgfSurface::new(&ex, &params, 11)
+            .unwrap()
+            .with_cache_capacity(2);
+        for &(x, y, w, h) in regions.iter().rev() {
+            let region = Region::new(x as f64, y as f64, w, h);
+            let want = window(&reference, x, y, w, h);
+            let mut got = vec![0.0f32; w * h * c];
+            surftile::stream::fill_parallel(&small, &region, &mut got, 1).unwrap();
+            assert_same_bits(&got, &want, &format!("{name}: 1 thread, region {x},{y}"));
+            let fresh = RsgfSurface::new(&ex, &params, 11).unwrap();
+            fresh.fill(&region, &mut got).unwrap();
+            assert_same_bits(&got, &want, &format!("{name}: fill, region {x},{y}"));
+        }
+        // Point samples at integer coordinates are the same pixels.
+        let mut px = vec![0.0f32; c];
+        for (x, y) in [(0, 0), (39, 40), (40, 39), (129, 77), (229, 199)] {
+            surface.sample(x as f64, y as f64, &mut px);
+            let at = (y * rw + x) * c;
+            assert_same_bits(
+                &px,
+                &reference.data[at..at + c],
+                &format!("{name}: sample {x},{y}"),
+            );
+        }
+        // Another seed gives another surface.
+        let other = RsgfSurface::new(&ex, &params, 12)
+            .unwrap()
+            .reference(rw, rh);
+        assert_ne!(other.data, reference.data, "{name}: seed has no effect");
+    }
+}
+
+/// Far from the origin (|x| ~ 10⁹ and 10¹²), a region split in four and filled in any
+/// order equals the whole.
+#[test]
+fn far_regions_split_any_way_agree() {
+    let (u, v) = ((23, 0), (9, 19));
+    let ex = near_regular(128, 128, u, v, 1);
+    let params = RsgfParams::new(u, v);
+    for (x0, y0) in [(1.0e9, -3.0e9 + 7.0), (-4.0e12 + 13.0, 2.5e12)] {
+        let whole_surface = RsgfSurface::new(&ex, &params, 5).unwrap();
+        let (w, h) = (150, 110);
+        let mut whole = vec![0.0f32; w * h];
+        whole_surface
+            .fill(&Region::new(x0, y0, w, h), &mut whole)
+            .unwrap();
+        let split = RsgfSurface::new(&ex, &params, 5).unwrap();
+        for &(x, y, pw, ph) in [
+            (70, 50, 80, 60),
+            (0, 0, 70, 50),
+            (70, 0, 80, 50),
+            (0, 50, 70, 60),
+        ]
+        .iter()
+        {
+            let mut part = vec![0.0f32; pw * ph];
+            split
+                .fill(
+                    &Region::new(x0 + x as f64, y0 + y as f64, pw, ph),
+                    &mut part,
+                )
+                .unwrap();
+            for row in 0..ph {
+                let want = &whole[(y + row) * w + x..(y + row) * w + x + pw];
+                assert_same_bits(
+                    &part[row * pw..(row + 1) * pw],
+                    want,
+                    &format!("({x0}, {y0}) part {x},{y}"),
+                );
+            }
+        }
+        assert!(whole.iter().all(|v| v.is_finite()));
+    }
+}
+
+/// Random blocks show patches at lattice multiples of their own position (§4.1).
+#[test]
+fn random_blocks_sit_at_lattice_multiples() {
+    let (u, v) = ((23, 0), (9, 19));
+    let ex = near_regular(128, 128, u, v, 1);
+    let params = RsgfParams::new(u, v);
+    let model = RsgfModel::new(&ex, &params).unwrap();
+    let lattice = Lattice::from_basis(u, v).unwrap();
+    let nx = 128 - 60 + 1;
+    let mut seen = std::collections::HashSet::new();
+    for j in -6i64..6 {
+        for i in -6i64..6 {
+            if !RsgfModel::is_random(i, j) {
+                continue;
+            }
+            let q = model.random_pick(3, i, j) as i64;
+            let (qx, qy) = (q % nx, q / nx);
+            let origin = (i * 40 - 10, j * 40 - 10);
+            assert!(
+                lattice.contains((qx - origin.0, qy - origin.1)),
+                "block ({i}, {j}) at ({qx}, {qy}) is not a lattice multiple from {origin:?}"
+            );
+            seen.insert(q);
+        }
+    }
+    assert!(
+        seen.len() > 20,
+        "only {} distinct random patches in 72 blocks",
+        seen.len()
+    );
+}
+
+/// Naive χ (eq. 10) or −γ (eq. 3, channels by eqs. 6–8) of the border of gap (i, j)
+/// at exemplar position (qx, qy), from raw exemplar values and the blocks' picks.
+fn naive_score(
+    model: &RsgfModel,
+    ex: &Raster,
+    seed: u32,
+    i: i64,
+    j: i64,
+    q: (usize, usize),
+    metric: Metric,
+) -> f64 {
+    let (b, o) = (40usize, 10usize);
+    let e = b + 2 * o;
+    let nx = ex.width - e + 1;
+    let pos = |p: u32| ((p as usize) % nx, (p as usize) / nx);
+    let left = pos(model.random_pick(seed, i - 1, j));
+    let right = pos(model.random_pick(seed, i + 1, j));
+    let up = pos(model.random_pick(seed, i, j - 1));
+    let down = pos(model.random_pick(seed, i, j + 1));
+    let c = ex.channels;
+    let (mut ssd, mut n) = (0.0, 0.0);
+    let mut sums = vec![[0.0f64; 5]; c]; // Σf, Σg, Σf², Σg², Σfg
+    for y in 0..e {
+        for x in 0..e {
+            let inner = (2 * o..e - 2 * o).contains(&x) && (2 * o..e - 2 * o).contains(&y);
+            if inner {
+                continue;
+            }
+            let (dx, dy) = (
+                2.0 * x as f64 + 1.0 - e as f64,
+                2.0 * y as f64 + 1.0 - e as f64,
+            );
+            let (src, lx, ly) = if dx.abs() >= dy.abs() {
+                if dx < 0.0 {
+                    (left, x + b, y)
+                } else {
+                    (right, x - b, y)
+                }
+            } else if dy < 0.0 {
+                (up, x, y + b)
+            } else {
+                (down, x, y - b)
+            };
+            n += 1.0;
+            for (ch, s) in sums.iter_mut().enumerate() {
+                let g = ex.get(src.0 + lx, src.1 + ly, ch) as f64;
+                let f = ex.get(q.0 + x, q.1 + y, ch) as f64;
+                ssd += (f - g) * (f - g);
+                s[0] += f;
+                s[1] += g;
+                s[2] += f * f;
+                s[3] += g * g;
+                s[4] += f * g;
+            }
+        }
+    }
+    match metric {
+        Metric::Ssd => ssd,
+        Metric::Ncc => {
+            let (mut num, mut den) = (0.0, 0.0);
+            for s in &sums {
+                num += n * s[4] - s[0] * s[1];
+                den += (n * s[2] - s[0] * s[0]).max(0.0).sqrt()
+                    * (n * s[3] - s[1] * s[1]).max(0.0).sqrt();
+            }
+            -(num / den)
+        }
+    }
+}
+
+/// The solved gap is the best candidate by a brute-force evaluation of the measure over
+/// every exemplar position within ±3 px of a lattice multiple (the FFT path in
+/// stochastic mode, direct dot products on the lattice; SSD and NCC).
+#[test]
+fn gaps_take_the_brute_force_best_candidate() {
+    let (u, v) = ((23, 0), (9, 19));
+    let ex = near_regular(110, 100, u, v, 2);
+    let lattice = Lattice::from_basis(u, v).unwrap();
+    for (params, stochastic) in [
+        (RsgfParams::new(u, v), false),
+        (
+            RsgfParams {
+                metric: Metric::Ncc,
+                ..RsgfParams::new(u, v)
+            },
+            false,
+        ),
+        (RsgfParams::stochastic(), true),
+    ] {
+        let model = RsgfModel::new(&ex, &params).unwrap();
+        let (nx, ny) = (110 - 59, 100 - 59);
+        for (i, j) in [(1, 0), (0, 1), (-3, 2), (7, -4)] {
+            let origin = (i * 40 - 10, j * 40 - 10);
+            let near = |qx: i64, qy: i64| {
+                stochastic
+                    || (-3..=3).any(|dy| {
+                        (-3..=3)
+                            .any(|dx| lattice.contains((qx - origin.0 - dx, qy - origin.1 - dy)))
+                    })
+            };
+            let mut best = f64::INFINITY;
+            for qy in 0..ny {
+                for qx in 0..nx {
+                    if near(qx as i64, qy as i64) {
+                        best = best.min(naive_score(&model, &ex, 9, i, j, (qx, qy), params.metric));
+                    }
+                }
+            }
+            let q = model.solve_gap(9, i, j) as usize;
+            let got = naive_score(&model, &ex, 9, i, j, (q % nx, q / nx), params.metric);
+            assert!(
+                near((q % nx) as i64, (q / nx) as i64),
+                "gap ({i}, {j}) left the candidate set"
+            );
+            assert!(
+                got <= best + 1e-9 * best.abs().max(1.0),
+                "{:?} stochastic={stochastic} gap ({i}, {j}): picked score {got}, best {best}",
+                params.metric
+            );
+        }
+    }
+}
+
+/// Plain tiling of one lattice cell of the exemplar (the HNF rectangle, rows shifted
+/// by B): the baseline RSGF must repeat less than.
+fn plain_tiling(ex: &Raster, u: (i64, i64), v: (i64, i64), w: usize, h: usize) -> Raster {
+    let l = Lattice::from_basis(u, v).unwrap();
+    let mut out = Raster::zeros(w, h, 1);
+    for y in 0..h {
+        for x in 0..w {
+            let (_, (lx, ly)) = l.reduce((x as i64, y as i64));
+            out.set(x, y, 0, ex.get(lx as usize, ly as usize, 0));
+        }
+    }
+    out
+}
+
+/// Quality on near-regular inputs: seams at block borders score ≤ 1.3, and the output
+/// repeats less than plain tiling of a single tile. Inputs: a 128² crop of the bundled
+/// measured X3P profile (periodic ridges) and the synthetic near-regular pattern.
+#[test]
+fn near_regular_quality() {
+    let x3p = read_image(&repo("tiles/x3p-2-crop.npy"), &ReadOptions::default())
+        .unwrap()
+        .raster
+        .crop(100, 100, 128, 128)
+        .unwrap();
+    let synthetic = near_regular(128, 128, (23, 0), (9, 19), 1);
+    for (name, ex) in [("x3p-2 crop", x3p), ("synthetic", synthetic)] {
+        let t = surftile::analysis::translation::estimate(&ex)
+            .unwrap()
+            .unwrap_or_else(|| panic!("{name}: no lattice"));
+        let params = RsgfParams::new(t.v1, t.v2);
+        let out = RsgfSurface::new(&ex, &params, 1)
+            .unwrap()
+            .reference(512, 512);
+        let seams = seam_score(&out, 40);
+        let rep = height_stats(&out).repetition;
+        let tiled = height_stats(&plain_tiling(&ex, t.v1, t.v2, 512, 512)).repetition;
+        eprintln!(
+            "{name}: lattice {:?}/{:?}, seam score {seams:.3}, repetition {rep:.3} vs plain tiling {tiled:.3}",
+            t.v1, t.v2
+        );
+        assert!(seams <= 1.3, "{name}: seam score {seams}");
+        assert!(
+            rep < tiled,
+            "{name}: repetition {rep} not below plain tiling's {tiled}"
+        );
+    }
+}
+
+/// A baked RSGF bank round-trips through bytes and opens as the same surface.
+#[test]
+fn rsgf_banks_round_trip() {
+    let image = read_image(&repo("tiles/x3p-2-crop.npy"), &ReadOptions::default()).unwrap();
+    let baker = Baker::builder()
+        .method(surftile::bank::Method::Rsgf)
+        .build()
+        .unwrap();
+    let bank = baker.bake(&image, "x3p-2-crop", &mut |_| {}).unwrap();
+    let params = bank.header.rsgf.clone().expect("rsgf section");
+    let back = Bank::from_bytes(&bank.to_bytes().unwrap(), "round trip").unwrap();
+    assert_eq!(back, bank);
+    let surface = open(&back, 4).unwrap();
+    let [w, h] = bank.header.tile_size;
+    let ex = Raster::from_vec(w, h, 1, bank.texels[0].clone()).unwrap();
+    let direct = RsgfSurface::new(&ex, &params, 4).unwrap();
+    let region = Region::new(-70.0, 33.0, 120, 90);
+    let (mut a, mut b) = (vec![0.0f32; 120 * 90], vec![0.0f32; 120 * 90]);
+    surface.fill(&region, &mut a).unwrap();
+    direct.fill(&region, &mut b).unwrap();
+    assert_same_bits(&a, &b, "bank vs direct");
+    // Zoomed out, samples stay finite and near the exemplar's range.
+    let lo = ex.data.iter().cloned().fold(f32::MAX, f32::min);
+    let hi = ex.data.iter().cloned().fold(f32::MIN, f32::max);
+    let mut far = vec![0.0f32; 64 * 64];
+    surface
+        .fill(&Region::new(1e6, -1e6, 64, 64).with_step(5.5), &mut far)
+        .unwrap();
+    assert!(
+        far.iter().all(|v| (lo..=hi).contains(v)),
+        "zoomed-out samples out of range"
+    );
+}
+
+/// Bad parameters and exemplars get clear errors, never a panic.
+#[test]
+fn bad_rsgf_input_is_refused() {
+    let ex = near_regular(128, 128, (23, 0), (9, 19), 1);
+    let msg = |p: RsgfParams| {
+        RsgfSurface::new(&ex, &p, 0)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    };
+    let big = msg(RsgfParams {
+        block_px: 200,
+        ..RsgfParams::stochastic()
+    });
+    assert!(big.contains("block") && big.contains("128×128"), "{big}");
+    let border = msg(RsgfParams {
+        border_px: 20,
+        ..RsgfParams::stochastic()
+    });
+    assert!(
+        border.contains("border") && border.contains("half the block"),
+        "{border}"
+    );
+    let patch = msg(RsgfParams {
+        block_px: 100,
+        border_px: 20,
+        ..RsgfParams::stochastic()
+    });
+    assert!(patch.contains("block + 2 × border"), "{patch}");
+    let cell = msg(RsgfParams::new((200, 0), (0, 150)));
+    assert!(
+        cell.contains("lattice") && cell.contains("no larger than"),
+        "{cell}"
+    );
+    let flat = msg(RsgfParams::new((4, 2), (8, 4)));
+    assert!(flat.contains("collinear"), "{flat}");
+    let mut nan = ex.clone();
+    nan.data[77] = f32::NAN;
+    let nan = RsgfSurface::new(&nan, &RsgfParams::stochastic(), 0)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(nan.contains("finite"), "{nan}");
+
+    // No lattice and no --stochastic: the bake says so and suggests both ways out.
+    let noise = read_image(&repo("tests/data/ps-1.npy"), &ReadOptions::default()).unwrap();
+    let baker = Baker::builder()
+        .method(surftile::bank::Method::Rsgf)
+        .build()
+        .unwrap();
+    let e = baker
+        .bake(&noise, "ps-1", &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("no lattice") && e.contains("--stochastic") && e.contains("--lattice"),
+        "{e}"
+    );
+    let stochastic = Baker::builder()
+        .method(surftile::bank::Method::Rsgf)
+        .rsgf(RsgfOptions {
+            stochastic: true,
+            ..RsgfOptions::default()
+        })
+        .build()
+        .unwrap();
+    assert!(stochastic.bake(&noise, "ps-1", &mut |_| {}).is_ok());
+    let both = Baker::builder()
+        .method(surftile::bank::Method::Rsgf)
+        .lattice((10, 0), (0, 10))
+        .rsgf(RsgfOptions {
+            stochastic: true,
+            ..RsgfOptions::default()
+        })
+        .build()
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(both.contains("stochastic"), "{both}");
+}
