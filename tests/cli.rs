@@ -296,6 +296,8 @@ fn demo_writes_the_gallery() {
         "x3p-2-roller.bank",
         "roller-exemplar.png",
         "roller-height.png",
+        "x3p-2-rsgf.bank",
+        "rsgf-height.png",
         "milling-parallel.bank",
         "milling-parallel.png",
         "milling-parallel-shaded.png",
@@ -516,4 +518,98 @@ fn lattice_estimation_from_the_command_line() {
     let r = surftile(dir.path(), &["lattice", "noise.npy", "--plot", "none.png"]);
     assert_clean_failure(dir.path(), &r, "--stochastic", "none.png");
     assert!(r.stderr.contains("--lattice"), "{}", r.stderr);
+}
+
+/// `bake --method rsgf` estimates the lattice, `info` shows it, `render` streams the
+/// surface; bad parameters and a texture without a lattice give one line and no bank.
+#[test]
+fn rsgf_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, v) = ((23i64, 0i64), (9i64, 19i64));
+    let image = surftile::lattice::periodic_pattern(128, 128, u, v);
+    surftile::io::write_heights(&dir.path().join("grid.npy"), &image, None).unwrap();
+    let r = surftile(
+        dir.path(),
+        &["bake", "grid.npy", "--method", "rsgf", "--out", "grid.bank"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("lattice estimated"), "{}", r.stderr);
+    let r = surftile(dir.path(), &["info", "grid.bank"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stdout.contains("rsgf on lattice") && r.stdout.contains("blocks of 40 px"),
+        "{}",
+        r.stdout
+    );
+    let r = surftile(
+        dir.path(),
+        &[
+            "render",
+            "grid.bank",
+            "--x",
+            "-50",
+            "--y",
+            "7",
+            "--w",
+            "200",
+            "--h",
+            "150",
+            "--out",
+            "grid.npy.out.npy",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let out = surftile::io::read_image(&dir.path().join("grid.npy.out.npy"), &Default::default())
+        .unwrap();
+    assert_eq!((out.raster.width, out.raster.height), (200, 150));
+
+    for (args, needle) in [
+        (vec!["--block", "200"], "block"),
+        (vec!["--border", "20"], "half the block"),
+        (
+            vec!["--block", "100", "--border", "20"],
+            "block + 2 × border",
+        ),
+        (vec!["--stochastic", "--lattice", "23,0;9,19"], "stochastic"),
+    ] {
+        let mut all = vec!["bake", "grid.npy", "--method", "rsgf", "--out", "bad.bank"];
+        all.extend(args);
+        let r = surftile(dir.path(), &all);
+        assert_clean_failure(dir.path(), &r, needle, "bad.bank");
+    }
+    let r = surftile(
+        dir.path(),
+        &["bake", "grid.npy", "--stochastic", "--out", "bad.bank"],
+    );
+    assert_clean_failure(dir.path(), &r, "rsgf when", "bad.bank");
+
+    let noise = surftile::io::read_image(&common::repo("tests/data/ps-1.npy"), &Default::default())
+        .unwrap()
+        .raster
+        .crop(0, 0, 128, 128)
+        .unwrap();
+    surftile::io::write_heights(&dir.path().join("noise.npy"), &noise, None).unwrap();
+    let r = surftile(
+        dir.path(),
+        &["bake", "noise.npy", "--method", "rsgf", "--out", "bad.bank"],
+    );
+    assert_clean_failure(dir.path(), &r, "no lattice", "bad.bank");
+    assert!(
+        r.stderr.contains("--stochastic") && r.stderr.contains("--lattice"),
+        "{}",
+        r.stderr
+    );
+    let r = surftile(
+        dir.path(),
+        &[
+            "bake",
+            "noise.npy",
+            "--method",
+            "rsgf",
+            "--stochastic",
+            "--out",
+            "noise.bank",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
 }
