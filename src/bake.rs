@@ -496,11 +496,7 @@ impl Baker {
             triangle_edge: edge,
             levels,
             spacing_um,
-            height_unit: if c == 1 && spacing_um.is_some() {
-                "um".into()
-            } else {
-                String::new()
-            },
+            height_unit: height_unit(c, spacing_um),
             seed: self.seed,
             lut_size: LUT_SIZE,
             lut_z_range: LUT_Z_RANGE,
@@ -673,11 +669,7 @@ impl Baker {
             triangle_edge: 0.0,
             levels,
             spacing_um,
-            height_unit: if c == 1 && spacing_um.is_some() {
-                "um".into()
-            } else {
-                String::new()
-            },
+            height_unit: height_unit(c, spacing_um),
             seed: self.seed,
             lut_size: 0,
             lut_z_range: 0.0,
@@ -743,6 +735,16 @@ fn mean_of(v: &[f64]) -> f64 {
 fn std_of(v: &[f64]) -> f64 {
     let m = mean_of(v);
     (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// The height unit a bank of `c` channels records: µm for a height map with a known
+/// spacing, none otherwise.
+pub(crate) fn height_unit(c: usize, spacing_um: Option<f64>) -> String {
+    if c == 1 && spacing_um.is_some() {
+        "um".into()
+    } else {
+        String::new()
+    }
 }
 
 /// Mean and standard deviation per channel of interleaved samples.

@@ -125,11 +125,7 @@ pub(crate) fn bake(
         triangle_edge: 0.0,
         levels,
         spacing_um,
-        height_unit: if c == 1 && spacing_um.is_some() {
-            "um".into()
-        } else {
-            String::new()
-        },
+        height_unit: crate::bake::height_unit(c, spacing_um),
         seed,
         lut_size: 0,
         lut_z_range: 0.0,

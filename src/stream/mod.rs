@@ -295,17 +295,8 @@ pub fn default_threads() -> usize {
 /// Rows per work item of a parallel fill.
 const BAND_ROWS: usize = 8;
 
-/// Fills `region` on `threads` threads (crossbeam scoped workers taking bands of rows
-/// from a shared counter). Each sample is computed independently, so the result is
-/// the same bits for any thread count.
-pub fn fill_parallel<S: Surface + ?Sized>(
-    surface: &S,
-    region: &Region,
-    out: &mut [f32],
-    threads: usize,
-) -> Result<()> {
-    region.validate()?;
-    let c = surface.channels();
+/// Checks that `out` holds exactly `region`'s samples of `c` channels.
+pub(crate) fn check_buffer(region: &Region, c: usize, out: &[f32]) -> Result<()> {
     let expected = region
         .len()
         .checked_mul(c)
@@ -317,6 +308,21 @@ pub fn fill_parallel<S: Surface + ?Sized>(
             format!("{expected} = {}×{}×{c}", region.width, region.height),
         ));
     }
+    Ok(())
+}
+
+/// Fills `region` on `threads` threads (crossbeam scoped workers taking bands of rows
+/// from a shared counter). Each sample is computed independently, so the result is
+/// the same bits for any thread count.
+pub fn fill_parallel<S: Surface + ?Sized>(
+    surface: &S,
+    region: &Region,
+    out: &mut [f32],
+    threads: usize,
+) -> Result<()> {
+    region.validate()?;
+    let c = surface.channels();
+    check_buffer(region, c, out)?;
     let band_len = BAND_ROWS * region.width * c;
     let bands: Vec<(usize, &mut [f32])> = out.chunks_mut(band_len).enumerate().collect();
     let threads = threads.clamp(1, bands.len());

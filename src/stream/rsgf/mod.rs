@@ -386,17 +386,7 @@ impl Surface for RsgfSurface {
         };
         region.validate()?;
         let c = self.model.c;
-        let expected = region
-            .len()
-            .checked_mul(c)
-            .ok_or_else(|| Error::Limits(format!("region {}×{}", region.width, region.height)))?;
-        if out.len() != expected {
-            return Err(Error::param(
-                "output buffer length",
-                out.len(),
-                format!("{expected} = {}×{}×{c}", region.width, region.height),
-            ));
-        }
+        super::check_buffer(region, c, out)?;
         let m = &self.model;
         let xr = m.block_range(x0, x0 + region.width as i64 - 1);
         let yr = m.block_range(y0, y0 + region.height as i64 - 1);

@@ -272,22 +272,38 @@ impl RsgfModel {
         let c = self.c;
         let l0 = &self.levels[0];
         out[..c].fill(0.0);
-        for (j, wy) in self.axis(py) {
-            if wy == 0.0 {
-                continue;
-            }
-            for (i, wx) in self.axis(px) {
-                if wx == 0.0 {
-                    continue;
-                }
-                let (qx, qy) = self.position(pick(i, j));
-                let (ox, oy) = self.origin(i, j);
+        self.taps(
+            self.axis(px),
+            self.axis(py),
+            pick,
+            |w, (qx, qy), (ox, oy)| {
                 let ex = qx + (px - ox) as usize;
                 let ey = qy + (py - oy) as usize;
-                let w = wy * wx;
                 let at = (ey * l0.w + ex) * c;
                 for (o, v) in out[..c].iter_mut().zip(&l0.data[at..at + c]) {
                     *o += w * v;
+                }
+            },
+        );
+    }
+
+    /// Calls `f(weight, position, origin)` for each block with a non-zero weight,
+    /// rows of blocks outer, in the fixed order of `ax` and `ay`.
+    #[inline]
+    fn taps(
+        &self,
+        ax: [(i64, f32); 2],
+        ay: [(i64, f32); 2],
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        mut f: impl FnMut(f32, (usize, usize), (i64, i64)),
+    ) {
+        for (j, wy) in ay {
+            if wy == 0.0 {
+                continue;
+            }
+            for (i, wx) in ax {
+                if wx != 0.0 {
+                    f(wy * wx, self.position(pick(i, j)), self.origin(i, j));
                 }
             }
         }
@@ -308,22 +324,16 @@ impl RsgfModel {
         let scale = 1.0 / (1u64 << level) as f64;
         let centre = ((1u64 << level) as f64 - 1.0) / 2.0;
         out[..c].fill(0.0);
-        for (j, wy) in self.axis_f(y) {
-            if wy == 0.0 {
-                continue;
-            }
-            for (i, wx) in self.axis_f(x) {
-                if wx == 0.0 {
-                    continue;
-                }
-                let (qx, qy) = self.position(pick(i, j));
-                let (ox, oy) = self.origin(i, j);
+        self.taps(
+            self.axis_f(x),
+            self.axis_f(y),
+            pick,
+            |w, (qx, qy), (ox, oy)| {
                 let ex = (qx as f64 + (x - ox as f64) - centre) * scale;
                 let ey = (qy as f64 + (y - oy as f64) - centre) * scale;
-                let w = wy * wx;
                 bilinear_add(lv, c, ex, ey, w, out);
-            }
-        }
+            },
+        );
     }
 
     /// The sequential whole-image RSGF (§4) of `width × height` pixels from the origin:
