@@ -321,9 +321,9 @@ impl Bank {
             return bad("rsgf rule without an rsgf section".into());
         };
         let [w, ht] = h.tile_size;
-        if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 24 {
+        if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
             return bad(format!(
-                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^24 pixels",
+                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
                 h.tiles
             ));
         }

@@ -239,10 +239,9 @@ impl RsgfSurface {
                 }
             }
         }
-        let solved: Vec<(usize, u32)> = if threads <= 1 || todo.len() < 2 {
-            todo.iter()
-                .map(|&(at, i, j)| (at, self.model.solve_gap(self.seed, i, j)))
-                .collect()
+        let solve = |&(at, i, j): &(usize, i64, i64)| (at, self.model.solve_gap(self.seed, i, j));
+        let mut solved: Vec<(usize, u32)> = if threads <= 1 || todo.len() < 2 {
+            todo.iter().map(solve).collect()
         } else {
             let next = std::sync::atomic::AtomicUsize::new(0);
             let parts = crossbeam::scope(|s| {
@@ -252,10 +251,10 @@ impl RsgfSurface {
                             let mut mine = Vec::new();
                             loop {
                                 let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                                let Some(&(at, i, j)) = todo.get(k) else {
+                                let Some(job) = todo.get(k) else {
                                     break;
                                 };
-                                mine.push((at, self.model.solve_gap(self.seed, i, j)));
+                                mine.push(solve(job));
                             }
                             mine
                         })
@@ -268,6 +267,12 @@ impl RsgfSurface {
             });
             parts.unwrap_or_default()
         };
+        // A worker that died (it cannot, short of a bug) leaves its gaps unsolved here:
+        // solve them on this thread rather than show wrong patches.
+        if solved.len() < todo.len() {
+            let done: std::collections::HashSet<usize> = solved.iter().map(|s| s.0).collect();
+            solved.extend(todo.iter().filter(|t| !done.contains(&t.0)).map(solve));
+        }
         let mut cache = self.lock();
         for &(at, q) in &solved {
             grid[at] = q;

@@ -26,6 +26,20 @@ use super::gap::GapTables;
 /// Hash stream of the random picks (ASCII "RSGF").
 const STREAM_RANDOM: u32 = 0x5253_4746;
 
+/// Largest exemplar the model accepts, in pixels.
+pub const MAX_EXEMPLAR_PIXELS: usize = 1 << 22;
+
+/// Residue index ry·A + rx of the integer point p in the lattice's fundamental domain
+/// [0, A) × [0, C) ([`Lattice::reduce`]'s local part), in modular arithmetic so that
+/// no product overflows for any |p| < 2⁶² (A, C ≤ 2²²).
+fn residue(l: Lattice, p: (i64, i64)) -> usize {
+    let j = p.1.div_euclid(l.c);
+    let ry = p.1 - j * l.c;
+    let shift = (j.rem_euclid(l.a) * l.b).rem_euclid(l.a);
+    let rx = (p.0.rem_euclid(l.a) - shift).rem_euclid(l.a);
+    (ry * l.a + rx) as usize
+}
+
 /// Smallest mip level side kept.
 const MIN_LEVEL_SIDE: usize = 4;
 
@@ -81,6 +95,14 @@ impl RsgfModel {
             ));
         }
         let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+        if !(1..=4).contains(&c) {
+            return Err(Error::param("RSGF exemplar channels", c, "1 to 4 channels"));
+        }
+        if w * h > MAX_EXEMPLAR_PIXELS {
+            return Err(Error::Limits(format!(
+                "an RSGF exemplar of {w}×{h} pixels (at most 2^22, e.g. 2048²: the gap search keeps per-position tables and spectra of it)"
+            )));
+        }
         let lattice = Lattice::from_basis(params.v1, params.v2)?;
         let cells = lattice.a as u128 * lattice.c as u128;
         if cells > (w * h) as u128 {
@@ -99,10 +121,7 @@ impl RsgfModel {
         let ext = params.block_px + 2 * params.border_px;
         let (nx, ny) = (w + 1 - ext, h + 1 - ext);
         let residues = cells as usize;
-        let residue_of = |qx: i64, qy: i64| {
-            let (_, (rx, ry)) = lattice.reduce((qx, qy));
-            (ry * lattice.a + rx) as usize
-        };
+        let residue_of = |qx: i64, qy: i64| residue(lattice, (qx, qy));
         // Exact lists: every position under its residue, in position order.
         let mut count = vec![0u32; residues + 1];
         for qy in 0..ny {
@@ -179,8 +198,7 @@ impl RsgfModel {
 
     /// Residue index of the integer point p.
     pub(crate) fn residue(&self, p: (i64, i64)) -> usize {
-        let (_, (rx, ry)) = self.lattice.reduce(p);
-        (ry * self.lattice.a + rx) as usize
+        residue(self.lattice, p)
     }
 
     /// Positions of residue r (possibly none): those whose offset from a point of
@@ -419,4 +437,39 @@ pub(crate) fn mip_chain(exemplar: &Raster) -> Vec<Level> {
         levels.push(Level { w, h, data });
     }
     levels
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The overflow-free residue equals [`Lattice::reduce`]'s wherever that one does not
+    /// overflow, and stays in range at |p| ~ 2⁵² with a lattice whose C is 1.
+    #[test]
+    fn residues_match_the_lattice_reduction() {
+        for (u, v) in [
+            ((23, 0), (9, 19)),
+            ((25, -2), (1, 30)),
+            ((-17, 31), (29, 11)),
+            ((1, 0), (0, 1)),
+        ] {
+            let l = Lattice::from_basis(u, v).unwrap();
+            for p in [
+                (0, 0),
+                (-1, -1),
+                (123_456, -98_765),
+                (-7_000_000_001, 5_000_000_003),
+            ] {
+                let (_, (rx, ry)) = l.reduce(p);
+                assert_eq!(
+                    residue(l, p),
+                    (ry * l.a + rx) as usize,
+                    "{u:?}/{v:?} at {p:?}"
+                );
+            }
+        }
+        let l = Lattice::from_basis((4_000_000, 0), (3_999_999, 1)).unwrap();
+        let r = residue(l, (1 << 52, -(1 << 52) + 3));
+        assert!(r < (l.a * l.c) as usize);
+    }
 }
