@@ -174,6 +174,7 @@ impl RsgfSurface {
                 format!("a {} bank; expected the rsgf rule", h.rule),
             ));
         };
+        bank.validate("RSGF bank")?;
         let [w, ht] = h.tile_size;
         let ex = Raster::from_vec(w, ht, h.channels, bank.texels[0].clone())?;
         RsgfSurface::new(&ex, params, seed)
