@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::error::{ContextKind, ContextValue, ErrorKind};
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 use surftile::analysis::level::level_plane;
 use surftile::analysis::missing::fill_missing;
@@ -29,6 +29,38 @@ use surftile::{Error, Result};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+/// Where a render starts and how many samples it takes (`render` and `mill`).
+#[derive(Args)]
+struct Window {
+    /// x of the first sample, in surface pixels.
+    #[arg(long, allow_negative_numbers = true)]
+    x: f64,
+    /// y of the first sample, in surface pixels.
+    #[arg(long, allow_negative_numbers = true)]
+    y: f64,
+    /// Width in samples.
+    #[arg(long, allow_negative_numbers = true)]
+    w: i64,
+    /// Height in samples.
+    #[arg(long, allow_negative_numbers = true)]
+    h: i64,
+}
+
+impl Window {
+    /// The checked region of this window sampled every `step` pixels.
+    fn region(&self, step: f64) -> Result<Region> {
+        let region = Region::new(
+            coordinate("x", self.x)?,
+            coordinate("y", self.y)?,
+            checked_size("w", self.w)?,
+            checked_size("h", self.h)?,
+        )
+        .with_step(step);
+        region.validate()?;
+        Ok(region)
+    }
 }
 
 #[derive(Subcommand)]
@@ -108,18 +140,8 @@ enum Command {
     Render {
         /// Bank file.
         bank: PathBuf,
-        /// x of the first sample, in surface pixels.
-        #[arg(long, allow_negative_numbers = true)]
-        x: f64,
-        /// y of the first sample, in surface pixels.
-        #[arg(long, allow_negative_numbers = true)]
-        y: f64,
-        /// Width in samples.
-        #[arg(long, allow_negative_numbers = true)]
-        w: i64,
-        /// Height in samples.
-        #[arg(long, allow_negative_numbers = true)]
-        h: i64,
+        #[command(flatten)]
+        window: Window,
         /// Distance between samples in pixels; above 1 reads prefiltered mip levels.
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         step: f64,
@@ -138,18 +160,8 @@ enum Command {
     Mill {
         /// Milling configuration (.toml) or preset name.
         config: PathBuf,
-        /// x of the first sample, in surface pixels.
-        #[arg(long, allow_negative_numbers = true)]
-        x: f64,
-        /// y of the first sample, in surface pixels.
-        #[arg(long, allow_negative_numbers = true)]
-        y: f64,
-        /// Width in samples.
-        #[arg(long, allow_negative_numbers = true)]
-        w: i64,
-        /// Height in samples.
-        #[arg(long, allow_negative_numbers = true)]
-        h: i64,
+        #[command(flatten)]
+        window: Window,
         /// Pixel spacing in µm.
         #[arg(long, allow_negative_numbers = true)]
         spacing: f64,
@@ -315,19 +327,6 @@ fn coordinate(name: &str, v: f64) -> Result<f64> {
             "a finite coordinate within ±2^52 pixels",
         ))
     }
-}
-
-/// The region of `--x --y --w --h --step`, checked.
-fn region_of(x: f64, y: f64, w: i64, h: i64, step: f64) -> Result<Region> {
-    let region = Region::new(
-        coordinate("x", x)?,
-        coordinate("y", y)?,
-        checked_size("w", w)?,
-        checked_size("h", h)?,
-    )
-    .with_step(step);
-    region.validate()?;
-    Ok(region)
 }
 
 /// Refuses an output path whose folder does not exist, before any work is done.
@@ -616,16 +615,13 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Render {
             bank,
-            x,
-            y,
-            w,
-            h,
+            window,
             step,
             seed,
             out,
             shade,
         } => {
-            let region = region_of(x, y, w, h, step)?;
+            let region = window.region(step)?;
             check_output(&out)?;
             let (bank, surface) = load_surface(&bank, seed)?;
             let start = Instant::now();
@@ -648,17 +644,14 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Mill {
             config,
-            x,
-            y,
-            w,
-            h,
+            window,
             spacing,
             step,
             seed,
             out,
             shade,
         } => {
-            let region = region_of(x, y, w, h, step)?;
+            let region = window.region(step)?;
             check_output(&out)?;
             let (config, base) = MillingConfig::load(&config)?;
             let start = Instant::now();

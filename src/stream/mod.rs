@@ -323,13 +323,30 @@ pub fn fill_parallel<S: Surface + ?Sized>(
     region.validate()?;
     let c = surface.channels();
     check_buffer(region, c, out)?;
-    let band_len = BAND_ROWS * region.width * c;
+    for_bands(region, c, out, threads, BAND_ROWS, |rows, chunk| {
+        surface.fill_rows(region, rows, chunk)
+    })
+}
+
+/// Runs `f(rows, chunk)` over bands of `band_rows` rows of `region` (`out` holding
+/// `c` channels per sample), on `threads` crossbeam workers taking bands from a shared
+/// queue. Each band is written by exactly one call, so the result does not depend on
+/// the thread count.
+pub(crate) fn for_bands(
+    region: &Region,
+    c: usize,
+    out: &mut [f32],
+    threads: usize,
+    band_rows: usize,
+    f: impl Fn(Range<usize>, &mut [f32]) + Sync,
+) -> Result<()> {
+    let band_len = band_rows * region.width * c;
     let bands: Vec<(usize, &mut [f32])> = out.chunks_mut(band_len).enumerate().collect();
-    let threads = threads.clamp(1, bands.len());
+    let rows = |b: usize| b * band_rows..((b + 1) * band_rows).min(region.height);
+    let threads = threads.clamp(1, bands.len().max(1));
     if threads == 1 {
         for (b, chunk) in bands {
-            let start = b * BAND_ROWS;
-            surface.fill_rows(region, start..(start + BAND_ROWS).min(region.height), chunk);
+            f(rows(b), chunk);
         }
         return Ok(());
     }
@@ -342,8 +359,7 @@ pub fn fill_parallel<S: Surface + ?Sized>(
         for _ in 0..threads {
             scope.spawn(|_| {
                 while let Some((b, chunk)) = queue.pop() {
-                    let start = b * BAND_ROWS;
-                    surface.fill_rows(region, start..(start + BAND_ROWS).min(region.height), chunk);
+                    f(rows(b), chunk);
                 }
             });
         }

@@ -404,25 +404,8 @@ impl Surface for RsgfSurface {
         }
         let blocks = self.picks(xr, yr, threads);
         // Compose in bands of rows, on all threads.
-        let band = 16usize;
-        let band_len = band * region.width * c;
-        let chunks: Vec<(usize, &mut [f32])> = out.chunks_mut(band_len).enumerate().collect();
-        let queue = crossbeam::queue::ArrayQueue::new(chunks.len().max(1));
-        for ch in chunks {
-            let _ = queue.push(ch);
-        }
-        crossbeam::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|_| {
-                    while let Some((b, chunk)) = queue.pop() {
-                        let start = b * band;
-                        let end = (start + band).min(region.height);
-                        self.compose_rows(&blocks, (x0, y0), region.width, start..end, chunk);
-                    }
-                });
-            }
+        super::for_bands(region, c, out, threads, 16, |rows, chunk| {
+            self.compose_rows(&blocks, (x0, y0), region.width, rows, chunk)
         })
-        .map_err(|_| Error::Unsupported("an RSGF fill worker panicked".into()))?;
-        Ok(())
     }
 }
