@@ -4,7 +4,8 @@
 //! ([`Error::Io`], [`Error::Decode`], [`Error::BadBank`]), a parameter out of range
 //! ([`Error::InvalidParameter`]), data the method cannot use ([`Error::MissingData`],
 //! [`Error::TooSmall`]), a request over a size limit ([`Error::Limits`]) or a format
-//! feature we do not read ([`Error::Unsupported`]). Every message is one line naming
+//! feature we do not read ([`Error::Unsupported`]) or a missing or failing GPU
+//! ([`Error::Gpu`]). Every message is one line naming
 //! what is wrong and what is expected.
 
 use std::path::Path;
@@ -84,6 +85,10 @@ pub enum Error {
     /// A format feature that surftile does not read or write.
     #[error("unsupported: {0}")]
     Unsupported(String),
+    /// No usable GPU adapter, or the GPU refused or lost the work: the machine's fault,
+    /// not the input's (callers may fall back to the CPU).
+    #[error("GPU: {0}")]
+    Gpu(String),
 }
 
 impl Error {

@@ -31,6 +31,7 @@ pub mod bank;
 pub mod demo;
 pub mod error;
 pub mod fft;
+pub mod gpu;
 pub mod hash;
 pub mod io;
 pub mod lattice;

@@ -2,6 +2,8 @@
 
 mod common;
 
+use common::near_regular;
+
 use std::sync::OnceLock;
 
 use surftile::Raster;
@@ -18,29 +20,6 @@ fn image(r: Raster) -> ImageFile {
         raster: r,
         spacing_um: None,
     }
-}
-
-/// A pattern on lattice (u, v) plus 10% white noise (a near-regular exemplar).
-fn near_regular(w: usize, h: usize, u: (i64, i64), v: (i64, i64), seed: u64) -> Raster {
-    let d = (u.0 * v.1 - u.1 * v.0) as f64;
-    let (us, vs) = (
-        (v.1 as f64 / d, -v.0 as f64 / d),
-        (-u.1 as f64 / d, u.0 as f64 / d),
-    );
-    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let tau = std::f64::consts::TAU;
-    let data = (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as f64, (i / w) as f64);
-            let (p, q) = (x * us.0 + y * us.1, x * vs.0 + y * vs.1);
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let noise = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-            ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.35 * noise) as f32
-        })
-        .collect();
-    Raster::from_vec(w, h, 1, data).unwrap()
 }
 
 fn di6() -> ImageFile {

@@ -20,45 +20,45 @@ const SQRT3: f64 = 1.732_050_807_568_877_2;
 
 /// A surface sampled from a blend bank ([`Rule::Blend`]) with a placement seed.
 pub struct BlendSurface {
-    seed: u32,
-    channels: usize,
-    tiles: u32,
-    levels: Vec<Level>,
-    edge: f64,
+    pub(crate) seed: u32,
+    pub(crate) channels: usize,
+    pub(crate) tiles: u32,
+    pub(crate) levels: Vec<Level>,
+    pub(crate) edge: f64,
     // Skew to the square grid: s = (x/E − y/(√3·E), 2y/(√3·E)). ALGORITHMS.md §3 prints
     // this matrix transposed (a GLSL column-major listing read as rows), which gives a
     // non-equilateral grid; this is the equilateral one (Heitz & Neyret 2018, listing 1).
-    skew_a: f64,
-    skew_b: f64,
-    skew_c: f64,
-    offset_mask_x: i64,
-    offset_mask_y: i64,
+    pub(crate) skew_a: f64,
+    pub(crate) skew_b: f64,
+    pub(crate) skew_c: f64,
+    pub(crate) offset_mask_x: i64,
+    pub(crate) offset_mask_y: i64,
     /// 16 − log2 K when K is a power of two below 2¹⁶, else 0 (see [`Self::vertex`]).
-    tile_shift: u32,
-    lut_size: usize,
+    pub(crate) tile_shift: u32,
+    pub(crate) lut_size: usize,
     /// `lut_size − 1` as f32: the last fractional table index.
-    lut_last: f32,
+    pub(crate) lut_last: f32,
     /// Table index of z = 0.
-    lut_centre: f32,
+    pub(crate) lut_centre: f32,
 }
 
-struct Level {
-    w: usize,
-    wmask: i64,
-    hmask: i64,
+pub(crate) struct Level {
+    pub(crate) w: usize,
+    pub(crate) wmask: i64,
+    pub(crate) hmask: i64,
     /// 2^−L: level-0 pixels to level-L texels.
-    scale: f64,
+    pub(crate) scale: f64,
     /// (2^L − 1)/2: a level-L texel's centre in level-0 pixels, relative to its first pixel.
-    centre: f64,
-    tile_stride: usize,
-    texels: Vec<f32>,
-    mean: [f32; 4],
+    pub(crate) centre: f64,
+    pub(crate) tile_stride: usize,
+    pub(crate) texels: Vec<f32>,
+    pub(crate) mean: [f32; 4],
     /// 1/σ times the T⁻¹ table's entries per standard deviation: Gaussian value to
     /// table index, before the blend normalisation.
-    lut_scale: [f32; 4],
+    pub(crate) lut_scale: [f32; 4],
     /// T⁻¹ per channel as (value, next value − value) pairs, the last pair's slope 0:
     /// one load and one multiply-add per lookup.
-    lut: Vec<[f32; 2]>,
+    pub(crate) lut: Vec<[f32; 2]>,
 }
 
 #[derive(Clone, Copy, Default)]

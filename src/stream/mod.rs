@@ -8,9 +8,9 @@
 //! - coordinates are surface pixels, within ±[`MAX_COORDINATE`]; outside it (and for
 //!   NaN) samples are NaN, never a panic.
 
-mod blend;
+pub(crate) mod blend;
 pub mod rsgf;
-mod toroidal;
+pub(crate) mod toroidal;
 
 use std::ops::Range;
 

@@ -13,19 +13,19 @@ use crate::hash::{hash_tile, pick_tile};
 use crate::lattice::Lattice;
 
 /// One mip level: the level lattice's HNF and the tiles stored on it.
-struct Level {
-    a: i64,
-    b: i64,
-    c: i64,
-    inv_a: f64,
-    inv_c: f64,
+pub(crate) struct Level {
+    pub(crate) a: i64,
+    pub(crate) b: i64,
+    pub(crate) c: i64,
+    pub(crate) inv_a: f64,
+    pub(crate) inv_c: f64,
     /// Largest |j| for which j·B fits comfortably in an i64.
-    j_safe: u64,
+    pub(crate) j_safe: u64,
     /// 2^−L and the level-L texel centre in level-0 pixels ((2^L − 1)/2).
-    scale: f64,
-    centre: f64,
-    tile_stride: usize,
-    texels: Vec<f32>,
+    pub(crate) scale: f64,
+    pub(crate) centre: f64,
+    pub(crate) tile_stride: usize,
+    pub(crate) texels: Vec<f32>,
 }
 
 /// ⌊v / d⌋ and v mod d for d > 0, from a floating-point estimate (an integer division
@@ -82,7 +82,7 @@ impl Level {
 
     /// Cell (i, j) of integer texel (x, y) and its position (lx, ly) in the HNF tile.
     #[inline(always)]
-    fn locate(&self, x: i64, y: i64) -> (i64, i64, i64, i64) {
+    pub(crate) fn locate(&self, x: i64, y: i64) -> (i64, i64, i64, i64) {
         let (j, ly) = div_floor(y, self.c, self.inv_c);
         let Some(xs) = self.unshift(x, j) else {
             // The same cell exactly, in i128.
@@ -95,15 +95,50 @@ impl Level {
     }
 }
 
+/// The rhomboid cells of a reduced basis B = [u v] (u, v as columns, det B > 0): cell
+/// (s, t) = ⌊B⁻¹·p⌋ = (⌊(v₂x − v₁y)/det⌋, ⌊(u₁y − u₂x)/det⌋), in exact integer
+/// arithmetic, so that the CPU and the GPU (`shaders/toroidal.wgsl`) put every pixel,
+/// border pixels included, in the same cell.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Rhomboid {
+    pub(crate) u: (i64, i64),
+    pub(crate) v: (i64, i64),
+    pub(crate) det: i64,
+    inv_det: f64,
+}
+
+impl Rhomboid {
+    /// The numerators (v₂x − v₁y, u₁y − u₂x) of pixel (x, y)'s rhomboid coordinates.
+    #[inline(always)]
+    pub(crate) fn numerators(&self, x: i64, y: i64) -> (i128, i128) {
+        let (x, y) = (x as i128, y as i128);
+        (
+            self.v.1 as i128 * x - self.v.0 as i128 * y,
+            self.u.0 as i128 * y - self.u.1 as i128 * x,
+        )
+    }
+
+    /// The rhomboid cell (s, t) of pixel (x, y).
+    #[inline(always)]
+    pub(crate) fn cell(&self, x: i64, y: i64) -> (i64, i64) {
+        let (ns, nt) = self.numerators(x, y);
+        let q = |n: i128| match i64::try_from(n) {
+            Ok(n) => div_floor(n, self.det, self.inv_det).0,
+            Err(_) => n.div_euclid(self.det as i128) as i64,
+        };
+        (q(ns), q(nt))
+    }
+}
+
 /// A surface sampled from a toroidal bank ([`Rule::Toroidal`]) with a placement seed.
 pub struct ToroidalSurface {
-    seed: u32,
-    channels: usize,
-    tiles: u32,
-    levels: Vec<Level>,
-    /// For several tiles on an oblique lattice: B⁻¹ of the reduced basis B = [u v]
-    /// (row-major), whose rhomboid cells ⌊B⁻¹·p⌋ are what the tiles were cut in.
-    rhomboid: Option<[f64; 4]>,
+    pub(crate) seed: u32,
+    pub(crate) channels: usize,
+    pub(crate) tiles: u32,
+    pub(crate) levels: Vec<Level>,
+    /// For several tiles on an oblique lattice: the reduced basis whose rhomboid cells
+    /// ⌊B⁻¹·p⌋ are what the tiles were cut in.
+    pub(crate) rhomboid: Option<Rhomboid>,
 }
 
 impl ToroidalSurface {
@@ -151,13 +186,13 @@ impl ToroidalSurface {
                 c: l0.c,
             }
             .reduced_basis();
-            let det = (u.0 * v.1 - u.1 * v.0) as f64;
-            [
-                v.1 as f64 / det,
-                -v.0 as f64 / det,
-                -u.1 as f64 / det,
-                u.0 as f64 / det,
-            ]
+            let det = u.0 * v.1 - u.1 * v.0;
+            Rhomboid {
+                u,
+                v,
+                det,
+                inv_det: 1.0 / det as f64,
+            }
         });
         Ok(ToroidalSurface {
             seed,
@@ -190,12 +225,7 @@ impl ToroidalSurface {
     /// The rhomboid cell of level-0 position (x, y), where tiles are chosen by rhomboid.
     #[inline(always)]
     fn rhomboid_cell(&self, x: i64, y: i64) -> Option<(i64, i64)> {
-        let m = self.rhomboid?;
-        let (x, y) = (x as f64, y as f64);
-        // Float rounding can only move a pixel lying on a rhomboid border into the
-        // neighbour, and there every tile holds the same texels.
-        let (s, t) = (m[0] * x + m[1] * y, m[2] * x + m[3] * y);
-        Some((s.floor() as i64, t.floor() as i64))
+        Some(self.rhomboid?.cell(x, y))
     }
 
     /// Tile shown at texel (x, y) of level `l` in HNF cell (i, j).

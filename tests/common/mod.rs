@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use surftile::Raster;
 use surftile::bake::Baker;
 use surftile::bank::Bank;
 use surftile::io::{ReadOptions, read_image};
@@ -27,4 +28,28 @@ pub fn demo_bank() -> &'static Bank {
             .bake(&image, "di-6", &mut |_| {})
             .unwrap()
     })
+}
+
+/// A pattern on lattice (u, v) plus 10% white noise (a near-regular exemplar).
+#[allow(dead_code)]
+pub fn near_regular(w: usize, h: usize, u: (i64, i64), v: (i64, i64), seed: u64) -> Raster {
+    let d = (u.0 * v.1 - u.1 * v.0) as f64;
+    let (us, vs) = (
+        (v.1 as f64 / d, -v.0 as f64 / d),
+        (-u.1 as f64 / d, u.0 as f64 / d),
+    );
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let tau = std::f64::consts::TAU;
+    let data = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let (p, q) = (x * us.0 + y * us.1, x * vs.0 + y * vs.1);
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let noise = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            ((tau * p).cos() + 0.6 * (tau * q).sin() + 0.35 * noise) as f32
+        })
+        .collect();
+    Raster::from_vec(w, h, 1, data).unwrap()
 }
