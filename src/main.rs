@@ -154,6 +154,11 @@ enum Command {
         /// Write a Phong-shaded 8-bit PNG instead of heights.
         #[arg(long)]
         shade: bool,
+        /// Fill on the GPU (any Vulkan, Metal or DX12 adapter, software ones included);
+        /// without an adapter, or for a rule the GPU does not run, fills on the CPU with
+        /// a notice.
+        #[arg(long)]
+        gpu: bool,
     },
     /// Render a region of a face-milled surface (seed 000 §4) from a TOML configuration
     /// or a preset name (e.g. parallel-d4-ae05) to .png, .tif or .npy; heights in µm.
@@ -620,10 +625,20 @@ fn run(command: Command) -> Result<()> {
             seed,
             out,
             shade,
+            gpu,
         } => {
             let region = window.region(step)?;
             check_output(&out)?;
-            let (bank, surface) = load_surface(&bank, seed)?;
+            let (bank, mut surface) = load_surface(&bank, seed)?;
+            if gpu {
+                match surftile::gpu::GpuFilled::open(&bank, seed) {
+                    Ok(g) => {
+                        eprintln!("render: filling on the GPU, {}", g.gpu().describe());
+                        surface = Box::new(g);
+                    }
+                    Err(e) => eprintln!("render: {e}; filling on the CPU instead"),
+                }
+            }
             let start = Instant::now();
             render_to_file(
                 surface.as_ref(),

@@ -193,3 +193,72 @@ fn toroidal_fills_match_the_cpu() {
         );
     }
 }
+
+fn run(dir: &std::path::Path, args: &[&str], env: Option<(&str, &str)>) -> (bool, String) {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_surftile"));
+    cmd.args(args).current_dir(dir);
+    if let Some((k, v)) = env {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// `render --gpu` fills on the GPU and writes what the CPU writes (within 1e-5
+/// relative error); without an adapter (here: asking wgpu for Metal on Linux) it says
+/// so in one line and renders on the CPU, bit for bit the CPU's output.
+#[test]
+fn render_gpu_matches_the_cpu_and_falls_back() {
+    let dir = tempfile::tempdir().unwrap();
+    common::demo_bank()
+        .write(&dir.path().join("b.bank"))
+        .unwrap();
+    let args = |out: &'static str, gpu: bool| {
+        let mut a = vec![
+            "render", "b.bank", "--x", "-1e8", "--y", "12.5", "--w", "300", "--h", "200", "--step",
+            "1.5", "--seed", "4", "--out", out,
+        ];
+        if gpu {
+            a.push("--gpu");
+        }
+        a
+    };
+    let read = |name: &str| {
+        surftile::io::read_image(&dir.path().join(name), &Default::default())
+            .unwrap()
+            .raster
+    };
+    let (ok, err) = run(dir.path(), &args("c.npy", false), None);
+    assert!(ok, "{err}");
+    let cpu = read("c.npy");
+    if !cfg!(target_os = "macos") {
+        let (ok, err) = run(
+            dir.path(),
+            &args("f.npy", true),
+            Some(("WGPU_BACKEND", "metal")),
+        );
+        assert!(ok, "{err}");
+        let notice: Vec<&str> = err.lines().filter(|l| l.contains("GPU")).collect();
+        assert_eq!(notice.len(), 1, "{err}");
+        assert!(notice[0].contains("filling on the CPU instead"), "{err}");
+        assert_eq!(read("f.npy").data, cpu.data);
+    }
+    if gpu().is_none() {
+        return;
+    }
+    let (ok, err) = run(dir.path(), &args("g.npy", true), None);
+    assert!(ok, "{err}");
+    assert!(err.contains("filling on the GPU"), "{err}");
+    let g = read("g.npy");
+    let scale = cpu.data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let worst = cpu
+        .data
+        .iter()
+        .zip(g.data)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-5 * scale, "render --gpu: {worst} of {scale}");
+}

@@ -42,21 +42,33 @@ impl Gpu {
     ///
     /// `WGPU_BACKEND` (e.g. `vulkan`) and `WGPU_ADAPTER_NAME` narrow the choice.
     pub fn new() -> crate::Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            ..Default::default()
-        }))
-        .or_else(|_| {
-            pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-                force_fallback_adapter: true,
+        // The primary backends (Vulkan, Metal, DX12) first; GL only where none of them
+        // has an adapter, as probing GL without a display prints warnings of its own.
+        let explicit = std::env::var_os("WGPU_BACKEND").is_some();
+        let mut tries = vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY];
+        if explicit {
+            tries = vec![wgpu::Backends::all()];
+        }
+        let mut failure = String::new();
+        let mut found = None;
+        for backends in tries {
+            let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+            desc.backends = backends;
+            let instance = wgpu::Instance::new(desc.with_env());
+            match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
                 ..Default::default()
-            }))
-        })
-        .map_err(|e| {
+            })) {
+                Ok(a) => {
+                    found = Some(a);
+                    break;
+                }
+                Err(e) => failure = e.to_string(),
+            }
+        }
+        let adapter = found.ok_or_else(|| {
             crate::Error::Gpu(format!(
-                "no GPU adapter found ({e}); install a Vulkan driver (on Debian, mesa-vulkan-drivers for software rendering)"
+                "no GPU adapter found ({failure}); install a Vulkan driver (on Debian, mesa-vulkan-drivers for software rendering)"
             ))
         })?;
         let info = adapter.get_info();
@@ -79,5 +91,55 @@ impl Gpu {
             "{} ({:?}, {:?})",
             self.info.name, self.info.backend, self.info.device_type
         )
+    }
+}
+
+/// A surface whose region fills run on the GPU, with single samples (and the fills'
+/// row kernel) on its CPU twin: what `surftile render --gpu` renders through.
+pub struct GpuFilled {
+    gpu: Gpu,
+    surface: GpuSurface,
+    cpu: Box<dyn crate::stream::Surface>,
+}
+
+impl GpuFilled {
+    /// Opens a device ([`Gpu::new`]) and uploads `bank` for fills placed with `seed`.
+    /// Fails with [`crate::Error::Gpu`] where there is no adapter and
+    /// [`crate::Error::Unsupported`] for rules the GPU does not run (milling, RSGF), so a
+    /// caller can fall back to the CPU.
+    pub fn open(bank: &crate::bank::Bank, seed: u32) -> crate::Result<GpuFilled> {
+        let cpu = crate::stream::open(bank, seed)?;
+        let gpu = Gpu::new()?;
+        let surface = GpuSurface::new(&gpu.device, &gpu.queue, bank, seed)?;
+        Ok(GpuFilled { gpu, surface, cpu })
+    }
+
+    /// The device in use.
+    pub fn gpu(&self) -> &Gpu {
+        &self.gpu
+    }
+}
+
+impl crate::stream::Surface for GpuFilled {
+    fn channels(&self) -> usize {
+        self.cpu.channels()
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        self.cpu.sample_footprint(x, y, footprint, out)
+    }
+
+    fn fill_rows(
+        &self,
+        region: &crate::stream::Region,
+        rows: std::ops::Range<usize>,
+        out: &mut [f32],
+    ) {
+        self.cpu.fill_rows(region, rows, out)
+    }
+
+    fn fill(&self, region: &crate::stream::Region, out: &mut [f32]) -> crate::Result<()> {
+        self.surface
+            .fill(&self.gpu.device, &self.gpu.queue, region, out)
     }
 }
