@@ -18,7 +18,7 @@ use surftile::bake::Baker;
 use surftile::bank::{Bank, Method};
 use surftile::gpu::{Gpu, GpuSurface};
 use surftile::io::ImageFile;
-use surftile::stream::{Region, Surface, open};
+use surftile::stream::{Region, open};
 
 fn roller_bank() -> Bank {
     let (u, v) = ((40, 0), (13, 29));
