@@ -9,12 +9,14 @@
 //!   NaN) samples are NaN, never a panic.
 
 pub(crate) mod blend;
+pub mod pages;
 pub mod rsgf;
 pub(crate) mod toroidal;
 
 use std::ops::Range;
 
 pub use blend::BlendSurface;
+pub use pages::{Page, PageKey, PageStats, PageStreamer, View};
 pub use rsgf::{Metric, RsgfModel, RsgfParams, RsgfSurface};
 pub use toroidal::ToroidalSurface;
 
