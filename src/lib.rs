@@ -22,7 +22,7 @@
 //! stages (levelling, missing points, periodic + smooth, Gaussianisation, RPN/ADSN,
 //! periodicity detection, roller cuts); [`bake`] runs them into a [`bank::Bank`];
 //! [`lattice`] holds integer lattices in Hermite normal form; [`models`] holds procedural surfaces (face milling, seed 000 §4); [`stream`] is the runtime
-//! ([`stream::Surface`], [`stream::Region`], the blend and toroidal rules, [`stream::open`]); [`stats`] computes the quality figures; [`shade`]
+//! ([`stream::Surface`], [`stream::Region`], the blend and toroidal rules, [`stream::open`]); [`gpu`] fills regions on any wgpu adapter from the WGSL twins in `shaders/`; [`stats`] computes the quality figures; [`shade`]
 //! and [`render`] make pictures; [`demo`] is `surftile demo`.
 
 pub mod analysis;

@@ -165,11 +165,12 @@ fn blend_fills_match_the_cpu() {
 #[test]
 fn toroidal_fills_match_the_cpu() {
     let Some(g) = gpu() else { return };
-    // One tile on a rectangle, four on a rectangle, four on an oblique lattice (whose
-    // tiles are chosen by rhomboid cell).
+    // One tile and four on a rectangle, one on an oblique lattice (HNF rows shifted by
+    // B), four on it (tiles chosen by rhomboid cell).
     for (u, v, tiles) in [
         ((32, 0), (0, 24), 1),
         ((32, 0), (0, 24), 4),
+        ((40, 0), (13, 29), 1),
         ((40, 0), (13, 29), 4),
     ] {
         let bank = bake(

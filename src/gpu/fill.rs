@@ -194,7 +194,6 @@ impl GpuSurface {
         bank: &Bank,
         seed: u32,
     ) -> Result<GpuSurface> {
-        let _ = queue;
         let (kind, module, entry) = match bank.header.rule {
             Rule::Toroidal => (
                 Kind::Toroidal(ToroidalSurface::new(bank, seed)?),
@@ -241,18 +240,19 @@ impl GpuSurface {
             }
         }
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let texels = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("surftile texels"),
-            contents: bytemuck::cast_slice(&data),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let luts = matches!(kind, Kind::Blend(_)).then(|| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("surftile tables"),
-                contents: bytemuck::cast_slice(&lut),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        });
+        let upload = |label: &str, bytes: &[u8]| {
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (bytes.len() as u64).max(4),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&buffer, 0, bytes);
+            buffer
+        };
+        let texels = upload("surftile texels", bytemuck::cast_slice(&data));
+        let luts = matches!(kind, Kind::Blend(_))
+            .then(|| upload("surftile tables", bytemuck::cast_slice(&lut)));
         let pipeline = pipeline(device, module, entry);
         check_scope(scope, "uploading the bank")?;
         Ok(GpuSurface {
