@@ -133,8 +133,8 @@ fn eval_level(l: u32, xm: u32, ym: u32, fx: f32, fy: f32, verts: array<Vertex, 3
     var g: array<vec4<f32>, 3>;
     for (var k = 0u; k < 3u; k++) {
         let v = verts[k];
-        var xr = (xm + v.ox) & params.mask_x;
-        var yr = (ym + v.oy) & params.mask_y;
+        let xr = (xm + v.ox) & params.mask_x;
+        let yr = (ym + v.oy) & params.mask_y;
         var ix = xr;
         var iy = yr;
         var tx = fx;

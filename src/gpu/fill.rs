@@ -19,7 +19,7 @@ use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
 use crate::stream::blend::BlendSurface;
 use crate::stream::toroidal::ToroidalSurface;
-use crate::stream::{Region, check_buffer, mip_level};
+use crate::stream::{Region, Surface, check_buffer, mip_level};
 
 /// Workgroup edge of the fill entry points (`@workgroup_size(16, 16)`).
 const GROUP: u32 = 16;
@@ -215,44 +215,25 @@ impl GpuSurface {
             .limits()
             .max_storage_buffer_binding_size
             .min(device.limits().max_buffer_size);
-        let mut texel_base = Vec::new();
-        let mut data: Vec<f32> = Vec::new();
-        for level in &bank.texels {
-            texel_base.push(u32::try_from(data.len()).map_err(|_| too_big("bank texels"))?);
-            data.extend_from_slice(level);
-        }
-        let mut lut_base = Vec::new();
-        let mut lut: Vec<[f32; 2]> = Vec::new();
-        if let Kind::Blend(s) = &kind {
-            for level in &s.levels {
-                lut_base.push(u32::try_from(lut.len()).map_err(|_| too_big("bank tables"))?);
-                lut.extend_from_slice(&level.lut);
-            }
-        }
-        for (what, bytes) in [
-            ("bank texels", data.len() * 4),
-            ("bank tables", lut.len() * 8),
-        ] {
-            if bytes as u64 > limit {
-                return Err(Error::Limits(format!(
-                    "{what} take {bytes} bytes, over this GPU's storage-buffer limit of {limit}"
-                )));
-            }
-        }
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let upload = |label: &str, bytes: &[u8]| {
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: (bytes.len() as u64).max(4),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            queue.write_buffer(&buffer, 0, bytes);
-            buffer
+        let levels: Vec<&[u8]> = bank
+            .texels
+            .iter()
+            .map(|t| bytemuck::cast_slice(t))
+            .collect();
+        let (texels, texel_base) = upload(device, queue, "bank texels", &levels, 4, limit)?;
+        let (luts, lut_base) = match &kind {
+            Kind::Blend(s) => {
+                let tables: Vec<&[u8]> = s
+                    .levels
+                    .iter()
+                    .map(|l| bytemuck::cast_slice(&l.lut))
+                    .collect();
+                let (buffer, base) = upload(device, queue, "bank tables", &tables, 8, limit)?;
+                (Some(buffer), base)
+            }
+            Kind::Toroidal(_) => (None, Vec::new()),
         };
-        let texels = upload("surftile texels", bytemuck::cast_slice(&data));
-        let luts = matches!(kind, Kind::Blend(_))
-            .then(|| upload("surftile tables", bytemuck::cast_slice(&lut)));
         let pipeline = pipeline(device, module, entry);
         check_scope(scope, "uploading the bank")?;
         Ok(GpuSurface {
@@ -271,6 +252,14 @@ impl GpuSurface {
     /// Values per sample.
     pub fn channels(&self) -> usize {
         self.channels
+    }
+
+    /// The CPU twin of this surface (same bank and seed), for single samples.
+    pub fn cpu(&self) -> &dyn Surface {
+        match &self.kind {
+            Kind::Toroidal(s) => s,
+            Kind::Blend(s) => s,
+        }
     }
 
     /// Fills `region` into `out` (row-major, interleaved channels), as the CPU's
@@ -539,6 +528,41 @@ impl GpuSurface {
 
 fn bytes<T: Pod>(v: &[T]) -> Vec<u8> {
     bytemuck::cast_slice(v).to_vec()
+}
+
+/// One storage buffer holding `parts` back to back, written through the queue (no
+/// concatenated copy on the host), and the start of each part in elements of `elem`
+/// bytes. Refused when the whole is over `limit` bytes.
+fn upload(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    what: &str,
+    parts: &[&[u8]],
+    elem: usize,
+    limit: u64,
+) -> Result<(wgpu::Buffer, Vec<u32>)> {
+    let total: usize = parts.iter().map(|p| p.len()).sum();
+    if total as u64 > limit {
+        return Err(Error::Limits(format!(
+            "{what} take {total} bytes, over this GPU's storage-buffer limit of {limit}"
+        )));
+    }
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(what),
+        size: (total as u64).max(4),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut base = Vec::with_capacity(parts.len());
+    let mut at = 0usize;
+    for part in parts {
+        base.push(u32::try_from(at / elem).map_err(|_| too_big(what))?);
+        if !part.is_empty() {
+            queue.write_buffer(&buffer, at as u64, part);
+        }
+        at += part.len();
+    }
+    Ok((buffer, base))
 }
 
 fn too_big(what: &str) -> Error {

@@ -44,11 +44,11 @@ impl Gpu {
     pub fn new() -> crate::Result<Gpu> {
         // The primary backends (Vulkan, Metal, DX12) first; GL only where none of them
         // has an adapter, as probing GL without a display prints warnings of its own.
-        let explicit = std::env::var_os("WGPU_BACKEND").is_some();
-        let mut tries = vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY];
-        if explicit {
-            tries = vec![wgpu::Backends::all()];
-        }
+        let tries = if std::env::var_os("WGPU_BACKEND").is_some() {
+            vec![wgpu::Backends::all()]
+        } else {
+            vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY]
+        };
         let mut failure = String::new();
         let mut found = None;
         for backends in tries {
@@ -99,7 +99,6 @@ impl Gpu {
 pub struct GpuFilled {
     gpu: Gpu,
     surface: GpuSurface,
-    cpu: Box<dyn crate::stream::Surface>,
 }
 
 impl GpuFilled {
@@ -108,10 +107,9 @@ impl GpuFilled {
     /// [`crate::Error::Unsupported`] for rules the GPU does not run (milling, RSGF), so a
     /// caller can fall back to the CPU.
     pub fn open(bank: &crate::bank::Bank, seed: u32) -> crate::Result<GpuFilled> {
-        let cpu = crate::stream::open(bank, seed)?;
         let gpu = Gpu::new()?;
         let surface = GpuSurface::new(&gpu.device, &gpu.queue, bank, seed)?;
-        Ok(GpuFilled { gpu, surface, cpu })
+        Ok(GpuFilled { gpu, surface })
     }
 
     /// The device in use.
@@ -122,11 +120,11 @@ impl GpuFilled {
 
 impl crate::stream::Surface for GpuFilled {
     fn channels(&self) -> usize {
-        self.cpu.channels()
+        self.surface.cpu().channels()
     }
 
     fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
-        self.cpu.sample_footprint(x, y, footprint, out)
+        self.surface.cpu().sample_footprint(x, y, footprint, out)
     }
 
     fn fill_rows(
@@ -135,7 +133,7 @@ impl crate::stream::Surface for GpuFilled {
         rows: std::ops::Range<usize>,
         out: &mut [f32],
     ) {
-        self.cpu.fill_rows(region, rows, out)
+        self.surface.cpu().fill_rows(region, rows, out)
     }
 
     fn fill(&self, region: &crate::stream::Region, out: &mut [f32]) -> crate::Result<()> {

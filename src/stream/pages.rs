@@ -96,6 +96,21 @@ struct State {
     stats: PageStats,
 }
 
+impl State {
+    /// Removes `job`'s pending entry, if it is still its own (a newer request for the
+    /// same key, made after this one was cancelled, keeps its entry); true if it was.
+    fn release(&mut self, job: &Job) -> bool {
+        let ours = self
+            .pending
+            .get(&job.key)
+            .is_some_and(|c| Arc::ptr_eq(c, &job.cancel));
+        if ours {
+            self.pending.remove(&job.key);
+        }
+        ours
+    }
+}
+
 struct Shared {
     surface: Arc<dyn Surface>,
     size: usize,
@@ -131,13 +146,7 @@ impl Shared {
                 if st.resident_bytes + st.inflight_bytes + self.page_bytes > self.budget {
                     // Every byte is in flight on other workers: give the page up; a
                     // later request asks again.
-                    if st
-                        .pending
-                        .get(&job.key)
-                        .is_some_and(|c| Arc::ptr_eq(c, &job.cancel))
-                    {
-                        st.pending.remove(&job.key);
-                    }
+                    st.release(&job);
                     continue;
                 }
                 st.inflight_bytes += self.page_bytes;
@@ -147,16 +156,7 @@ impl Shared {
             let page = self.fill(job.key);
             let mut st = self.lock();
             st.inflight_bytes -= self.page_bytes;
-            // Only this job's own entry: a newer request for the same key (after this
-            // one was cancelled) keeps its own.
-            let ours = st
-                .pending
-                .get(&job.key)
-                .is_some_and(|c| Arc::ptr_eq(c, &job.cancel));
-            if ours {
-                st.pending.remove(&job.key);
-            }
-            if ours && !job.cancel.load(Ordering::Relaxed) {
+            if st.release(&job) && !job.cancel.load(Ordering::Relaxed) {
                 st.resident.put(job.key, Arc::new(page));
                 st.resident_bytes += self.page_bytes;
             }
