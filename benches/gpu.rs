@@ -1,8 +1,10 @@
 //! GPU region fill against the CPU fill, per rule, in samples/s (issue 6), measured in
-//! the same run: blend (di-6, 8 tiles of 256²) and toroidal (a 4-tile roller bank on the
-//! oblique lattice (40, 0)/(13, 29)), at step 1 and at step 2.5 (two mip levels
-//! blended). The GPU figure includes the upload of the column and row tables and the
-//! read-back of the f32 result: what a caller of `GpuSurface::fill` gets.
+//! the same run: blend (di-6, 8 tiles of 256²), toroidal (a 4-tile roller bank on the
+//! oblique lattice (40, 0)/(13, 29)) and milling (the preset parallel-d4-ae05 at 6.1 µm
+//! per pixel), at step 1 and at step 2.5 (two mip levels blended; milling averages 3 × 3
+//! points per sample). The GPU figure includes the upload of the column and row tables
+//! (for milling, the host's search for each block's rings) and the read-back of the f32
+//! result: what a caller of `GpuSurface::fill` gets.
 //!
 //! `SURFTILE_BENCH_SIDE` sets the region side (default 1024; 8192 on a real GPU).
 //! Without an adapter the GPU rows are skipped with a notice.
@@ -18,6 +20,7 @@ use surftile::bake::Baker;
 use surftile::bank::{Bank, Method};
 use surftile::gpu::{Gpu, GpuSurface};
 use surftile::io::ImageFile;
+use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::stream::{Region, open};
 
 fn roller_bank() -> Bank {
@@ -39,6 +42,14 @@ fn roller_bank() -> Bank {
         .unwrap()
 }
 
+fn milling_bank() -> Bank {
+    let (c, _) = MillingConfig::load("tiles/milling/parallel-d4-ae05.toml".as_ref()).unwrap();
+    MillingSurface::new(&c, 6.1, 1)
+        .unwrap()
+        .to_bank("parallel-d4-ae05")
+        .unwrap()
+}
+
 fn bench(c: &mut Criterion) {
     let side: usize = std::env::var("SURFTILE_BENCH_SIDE")
         .ok()
@@ -57,6 +68,7 @@ fn bench(c: &mut Criterion) {
     let banks = [
         ("blend", common::demo_bank().clone()),
         ("toroidal", roller_bank()),
+        ("milling", milling_bank()),
     ];
     let mut g = c.benchmark_group("gpu_fill");
     g.sample_size(10).measurement_time(Duration::from_secs(6));

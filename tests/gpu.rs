@@ -195,6 +195,69 @@ fn toroidal_fills_match_the_cpu() {
     }
 }
 
+/// Milling on the GPU against the CPU: both tool paths, every ring shape and every
+/// interaction, over the parity regions (steps above 1 average a footprint of up to
+/// 4 × 4 points, as the CPU does). Pixels at a ring's part border, where the model is
+/// discontinuous, are recomputed by the host in f64; their share is printed.
+#[test]
+fn milling_fills_match_the_cpu() {
+    use surftile::models::milling::config::{InteractionKind, ShapeKind};
+    use surftile::models::milling::{MillingConfig, MillingSurface};
+    use surftile::stream::Surface;
+    let Some(g) = gpu() else { return };
+    let cases = [
+        ("parallel-d4-ae05", ShapeKind::Bump, InteractionKind::Convex),
+        ("spiral-d4-ae05", ShapeKind::Bump, InteractionKind::Convex),
+        (
+            "parallel-d8-ae02",
+            ShapeKind::Indicator,
+            InteractionKind::Min,
+        ),
+        ("spiral-d4-ae08", ShapeKind::Cosine, InteractionKind::Latest),
+        ("parallel-d4-ae08", ShapeKind::Cosine, InteractionKind::Min),
+    ];
+    for (preset, shape, interaction) in cases {
+        let path = format!("tiles/milling/{preset}.toml");
+        let (mut c, _) = MillingConfig::load(path.as_ref()).unwrap();
+        c.shape.kind = shape;
+        c.interaction.kind = interaction;
+        let cpu = MillingSurface::new(&c, 6.1, 9).unwrap();
+        let gs = GpuSurface::milling(&g.device, cpu.clone()).unwrap();
+        let (mut worst, mut samples) = (0.0f64, 0usize);
+        for r in regions() {
+            let mut a = vec![0.0f32; r.len()];
+            let mut b = vec![0.0f32; r.len()];
+            cpu.fill(&r, &mut a).unwrap();
+            gs.fill(&g.device, &g.queue, &r, &mut b).unwrap();
+            let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64));
+            assert!(scale > 0.0 && b.iter().all(|v| v.is_finite()), "{r:?}");
+            let err = a
+                .iter()
+                .zip(&b)
+                .map(|(p, q)| (p - q).abs() as f64)
+                .fold(0.0, f64::max)
+                / scale;
+            worst = worst.max(err);
+            samples += r.len();
+        }
+        let host = gs.host_recomputed();
+        eprintln!(
+            "milling {preset} {shape:?}/{interaction:?}: max relative error {worst:.2e}; \
+             {host} of {samples} samples ({:.3}%) recomputed on the host at ring borders",
+            100.0 * host as f64 / samples as f64
+        );
+        assert!(
+            worst <= 1e-5,
+            "milling {preset} {shape:?} {interaction:?}: max relative error {worst:.2e}"
+        );
+        // The border fallback is for the few samples f32 cannot decide, not a CPU fill.
+        assert!(
+            (host as f64) < 0.01 * samples as f64,
+            "{host} of {samples} samples fell back to the host"
+        );
+    }
+}
+
 fn run(dir: &std::path::Path, args: &[&str], env: Option<(&str, &str)>) -> (bool, String) {
     let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_surftile"));
     cmd.args(args).current_dir(dir);

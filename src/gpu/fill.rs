@@ -14,9 +14,11 @@ use std::sync::mpsc;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
+use super::milling::GpuMilling;
 use super::shaders;
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
+use crate::models::milling::MillingSurface;
 use crate::stream::blend::BlendSurface;
 use crate::stream::toroidal::ToroidalSurface;
 use crate::stream::{Region, Surface, check_buffer, mip_level};
@@ -169,9 +171,8 @@ enum Kind {
     Blend(BlendSurface),
 }
 
-/// A bank uploaded to the GPU: its texels (and tables) as storage buffers, its rule's
-/// pipeline, and the placement seed. Fills any region, as [`crate::stream::Surface::fill`] does on the CPU.
-pub struct GpuSurface {
+/// A bank's texels (and tables) on the GPU, with its rule's pipeline.
+struct BankGpu {
     kind: Kind,
     channels: usize,
     levels: usize,
@@ -181,19 +182,43 @@ pub struct GpuSurface {
     texels: wgpu::Buffer,
     luts: Option<wgpu::Buffer>,
     pipeline: wgpu::ComputePipeline,
+}
+
+/// What a GPU surface fills from.
+enum Backing {
+    Bank(Box<BankGpu>),
+    Milling(Box<GpuMilling>),
+}
+
+/// A surface on the GPU: a bank's texels (and tables) as storage buffers, or a
+/// milling model's tables, with the pipeline of its rule and the placement seed. Fills
+/// any region, as [`crate::stream::Surface::fill`] does on the CPU.
+pub struct GpuSurface {
+    backing: Backing,
+    channels: usize,
     max_band_bytes: u64,
 }
 
+fn band_limit(device: &wgpu::Device) -> u64 {
+    device
+        .limits()
+        .max_storage_buffer_binding_size
+        .min(device.limits().max_buffer_size)
+}
+
 impl GpuSurface {
-    /// Uploads `bank` for fills placed with `seed`. Blend and toroidal banks run on the
-    /// GPU; milling and RSGF banks are refused with [`Error::Unsupported`] (callers fall
-    /// back to the CPU).
+    /// Uploads `bank` for fills placed with `seed`. Blend, toroidal and milling banks run
+    /// on the GPU; RSGF banks are refused with [`Error::Unsupported`] (callers fall back
+    /// to the CPU).
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         bank: &Bank,
         seed: u32,
     ) -> Result<GpuSurface> {
+        if bank.header.rule == Rule::Milling {
+            return GpuSurface::milling(device, MillingSurface::from_bank(bank, seed)?);
+        }
         let (kind, module, entry) = match bank.header.rule {
             Rule::Toroidal => (
                 Kind::Toroidal(ToroidalSurface::new(bank, seed)?),
@@ -207,14 +232,11 @@ impl GpuSurface {
             ),
             rule => {
                 return Err(Error::Unsupported(format!(
-                    "{rule} banks on the GPU (blend and toroidal banks run there; this one fills on the CPU)"
+                    "{rule} banks on the GPU (blend, toroidal and milling banks run there; this one fills on the CPU)"
                 )));
             }
         };
-        let limit = device
-            .limits()
-            .max_storage_buffer_binding_size
-            .min(device.limits().max_buffer_size);
+        let limit = band_limit(device);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let levels: Vec<&[u8]> = bank
             .texels
@@ -237,15 +259,28 @@ impl GpuSurface {
         let pipeline = pipeline(device, module, entry);
         check_scope(scope, "uploading the bank")?;
         Ok(GpuSurface {
+            backing: Backing::Bank(Box::new(BankGpu {
+                channels: bank.header.channels,
+                levels: bank.header.levels.len(),
+                kind,
+                texel_base,
+                lut_base,
+                texels,
+                luts,
+                pipeline,
+            })),
             channels: bank.header.channels,
-            levels: bank.header.levels.len(),
-            kind,
-            texel_base,
-            lut_base,
-            texels,
-            luts,
-            pipeline,
             max_band_bytes: limit.min(MAX_BAND_BYTES),
+        })
+    }
+
+    /// A milling surface on the GPU (`shaders/milling.wgsl`): its tables uploaded once;
+    /// each fill's ring lists are found on the host (see [`super::milling`]).
+    pub fn milling(device: &wgpu::Device, surface: MillingSurface) -> Result<GpuSurface> {
+        Ok(GpuSurface {
+            backing: Backing::Milling(Box::new(GpuMilling::new(device, surface)?)),
+            channels: 1,
+            max_band_bytes: band_limit(device).min(MAX_BAND_BYTES),
         })
     }
 
@@ -256,9 +291,21 @@ impl GpuSurface {
 
     /// The CPU twin of this surface (same bank and seed), for single samples.
     pub fn cpu(&self) -> &dyn Surface {
-        match &self.kind {
-            Kind::Toroidal(s) => s,
-            Kind::Blend(s) => s,
+        match &self.backing {
+            Backing::Bank(b) => match &b.kind {
+                Kind::Toroidal(s) => s,
+                Kind::Blend(s) => s,
+            },
+            Backing::Milling(m) => &m.surface,
+        }
+    }
+
+    /// Samples the host computed in f64 because the GPU could not decide them in f32
+    /// (milling pixels at a ring's part border), over every fill so far; 0 for banks.
+    pub fn host_recomputed(&self) -> u64 {
+        match &self.backing {
+            Backing::Bank(_) => 0,
+            Backing::Milling(m) => m.recomputed.load(std::sync::atomic::Ordering::Relaxed),
         }
     }
 
@@ -288,11 +335,16 @@ impl GpuSurface {
         for (k, chunk) in out.chunks_mut(band * row_len).enumerate() {
             let rows = chunk.len() / row_len;
             let sub = region.sub(0, k * band, region.width, rows)?;
-            self.fill_band(device, queue, &sub, chunk)?;
+            match &self.backing {
+                Backing::Bank(b) => b.fill_band(device, queue, &sub, chunk)?,
+                Backing::Milling(m) => m.fill_band(device, queue, &sub, chunk)?,
+            }
         }
         Ok(())
     }
+}
 
+impl BankGpu {
     /// One dispatch: parameters and axes for `region`, then the read-back.
     fn fill_band(
         &self,
@@ -314,21 +366,10 @@ impl GpuSurface {
             }
         };
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let storage = |label: &str, data: &[u8]| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: data,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("surftile fill parameters"),
-            contents: &params,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let uniform = uniform(device, &params);
         let (cols, rows) = (
-            storage("surftile columns", &cols),
-            storage("surftile rows", &rows),
+            storage(device, "surftile columns", &cols),
+            storage(device, "surftile rows", &rows),
         );
         let bytes = std::mem::size_of_val(out) as u64;
         let target = device.create_buffer(&wgpu::BufferDescriptor {
@@ -526,7 +567,7 @@ impl GpuSurface {
     }
 }
 
-fn bytes<T: Pod>(v: &[T]) -> Vec<u8> {
+pub(super) fn bytes<T: Pod>(v: &[T]) -> Vec<u8> {
     bytemuck::cast_slice(v).to_vec()
 }
 
@@ -565,13 +606,31 @@ fn upload(
     Ok((buffer, base))
 }
 
+/// A read-only storage buffer holding `data`.
+pub(super) fn storage(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: data,
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+/// A uniform buffer holding a fill's parameters.
+pub(super) fn uniform(device: &wgpu::Device, data: &[u8]) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("surftile fill parameters"),
+        contents: data,
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
+}
+
 fn too_big(what: &str) -> Error {
     Error::Limits(format!(
         "{what} is too large for the GPU path's 32-bit indices"
     ))
 }
 
-fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(super) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: buffer.as_entire_binding(),
@@ -579,7 +638,7 @@ fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 }
 
 /// The compute pipeline of entry point `entry` in shader module `module`.
-fn pipeline(device: &wgpu::Device, module: &str, entry: &str) -> wgpu::ComputePipeline {
+pub(super) fn pipeline(device: &wgpu::Device, module: &str, entry: &str) -> wgpu::ComputePipeline {
     let source = shaders::module(module);
     let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(module),
@@ -596,7 +655,7 @@ fn pipeline(device: &wgpu::Device, module: &str, entry: &str) -> wgpu::ComputePi
 }
 
 /// Turns a validation error captured since `scope` was pushed into [`Error::Gpu`].
-fn check_scope(scope: wgpu::ErrorScopeGuard, doing: &str) -> Result<()> {
+pub(super) fn check_scope(scope: wgpu::ErrorScopeGuard, doing: &str) -> Result<()> {
     match pollster::block_on(scope.pop()) {
         None => Ok(()),
         Some(e) => Err(Error::Gpu(format!(
@@ -607,7 +666,7 @@ fn check_scope(scope: wgpu::ErrorScopeGuard, doing: &str) -> Result<()> {
 }
 
 /// Copies little-endian f32 bytes into `out`.
-fn copy_f32(bytes: &[u8], out: &mut [f32]) {
+pub(super) fn copy_f32(bytes: &[u8], out: &mut [f32]) {
     match bytemuck::try_cast_slice::<u8, f32>(bytes) {
         Ok(v) => out.copy_from_slice(v),
         Err(_) => {
@@ -621,7 +680,7 @@ fn copy_f32(bytes: &[u8], out: &mut [f32]) {
 /// Dispatches `groups` workgroups of `pipeline`, copies `bytes` of `target` to a mapped
 /// buffer and hands them to `read`.
 #[allow(clippy::too_many_arguments)]
-fn dispatch_and_read<T>(
+pub(super) fn dispatch_and_read<T>(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     pipeline: &wgpu::ComputePipeline,

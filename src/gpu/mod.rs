@@ -12,6 +12,7 @@
 //! test into a failure.
 
 mod fill;
+mod milling;
 mod shaders;
 
 pub use fill::{GpuSurface, HashInput, HashOutput, gpu_hashes};
@@ -104,7 +105,7 @@ pub struct GpuFilled {
 impl GpuFilled {
     /// Opens a device ([`Gpu::new`]) and uploads `bank` for fills placed with `seed`.
     /// Fails with [`crate::Error::Gpu`] where there is no adapter and
-    /// [`crate::Error::Unsupported`] for rules the GPU does not run (milling, RSGF), so a
+    /// [`crate::Error::Unsupported`] for rules the GPU does not run (RSGF), so a
     /// caller can fall back to the CPU.
     pub fn open(bank: &crate::bank::Bank, seed: u32) -> crate::Result<GpuFilled> {
         let gpu = Gpu::new()?;

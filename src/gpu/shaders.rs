@@ -8,6 +8,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("hash.wgsl", include_str!("../../shaders/hash.wgsl")),
     ("toroidal.wgsl", include_str!("../../shaders/toroidal.wgsl")),
     ("blend.wgsl", include_str!("../../shaders/blend.wgsl")),
+    ("milling.wgsl", include_str!("../../shaders/milling.wgsl")),
     (
         "hash_check.wgsl",
         include_str!("../../shaders/hash_check.wgsl"),
@@ -18,6 +19,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
 const MODULES: &[(&str, &[&str])] = &[
     ("toroidal", &["hash.wgsl", "toroidal.wgsl"]),
     ("blend", &["hash.wgsl", "blend.wgsl"]),
+    ("milling", &["milling.wgsl"]),
     ("hash_check", &["hash.wgsl", "hash_check.wgsl"]),
 ];
 

@@ -350,13 +350,28 @@ impl MillingSurface {
 
     /// The rings that can reach the rectangle `rect` (mm), drawn, in milling order.
     fn block_rings(&self, rect: (f64, f64, f64, f64), spiral: bool, list: &mut Vec<ring::Drawn>) {
+        list.clear();
+        self.rings_reaching_rect(rect, spiral, |_, d| list.push(d));
+        if self.rings.interaction != InteractionKind::Min {
+            list.sort_unstable_by_key(|d| d.key);
+        }
+    }
+
+    /// Calls `push(id, drawn)` for every ring that can reach the rectangle `rect` (mm),
+    /// in the order the path visits them (sort by [`ring::Drawn::key`] for milling
+    /// order). The GPU fill builds its per-block ring lists with it.
+    pub(crate) fn rings_reaching_rect(
+        &self,
+        rect: (f64, f64, f64, f64),
+        spiral: bool,
+        mut push: impl FnMut((i64, i64), ring::Drawn),
+    ) {
         let m = &self.rings;
         let (x0, y0, x1, y1) = rect;
         let (mx, my) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
         // Half the diagonal, a hair larger so rounding cannot drop a ring.
         let half = 0.5 * (x1 - x0).hypot(y1 - y0) * (1.0 + 1e-9) + 1e-12;
         let (s_in, s_out) = (m.support2.0 * (1.0 - 1e-9), m.support2.1 * (1.0 + 1e-9));
-        list.clear();
         self.path.candidates(
             mx,
             my,
@@ -371,13 +386,30 @@ impl MillingSurface {
                 let fx = (cx - x0).abs().max((x1 - cx).abs());
                 let fy = (cy - y0).abs().max((y1 - cy).abs());
                 if nx * nx + ny * ny <= s_out && fx * fx + fy * fy >= s_in {
-                    list.push(d);
+                    push(id, d);
                 }
             },
         );
-        if m.interaction != InteractionKind::Min {
-            list.sort_unstable_by_key(|d| d.key);
-        }
+    }
+
+    /// The ring model (for the GPU path).
+    pub(crate) fn ring_model(&self) -> &RingModel {
+        &self.rings
+    }
+
+    /// The tool path (for the GPU path).
+    pub(crate) fn tool_path(&self) -> &ToolPath {
+        &self.path
+    }
+
+    /// Millimetres per surface pixel.
+    pub(crate) fn mm_per_px(&self) -> f64 {
+        self.mm_per_px
+    }
+
+    /// The radial shape table and the quantised noise profiles (for the GPU path).
+    pub(crate) fn tables(&self) -> (&[f32], &[i16]) {
+        (&self.lut, &self.noise_q)
     }
 
     /// The block rows r0..r1 × columns c0..c1 of `region`, ring by ring in milling

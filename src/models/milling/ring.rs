@@ -174,31 +174,31 @@ pub type Key = (i64, i64, u32, i64, i64);
 /// The numbers of the ring sub-model, derived once from a configuration (mm, µm).
 #[derive(Clone, Debug)]
 pub struct RingModel {
-    pub(super) shape: ShapeKind,
-    pub(super) interaction: InteractionKind,
+    pub(crate) shape: ShapeKind,
+    pub(crate) interaction: InteractionKind,
     /// r = d/2.
-    pub(super) r: f64,
+    pub(crate) r: f64,
     /// (mean, std) of w⁻, w⁺ⁱ, w⁺ᵒ in mm.
     widths: [(f64, f64); 3],
     /// Per part: (μ_l, σ_l, μ_h, σ_h) in µm.
     tilt: [(f64, f64, f64, f64); 3],
-    noise_amplitude: f64,
+    pub(crate) noise_amplitude: f64,
     front: (f64, f64),
     rear: (f64, f64),
     /// Cholesky factor (l00, l10, l11) of Σ_c.
     chol: (f64, f64, f64),
     /// No ring reaches a point farther than this from its nominal centre (mm).
-    pub(super) reach_out: f64,
+    pub(crate) reach_out: f64,
     /// No ring reaches a point nearer than this to its nominal centre (mm).
-    pub(super) reach_in: f64,
+    pub(crate) reach_in: f64,
     /// ε.
-    pub(super) reorder: f64,
+    pub(crate) reorder: f64,
     /// How far a reordered ring moves, in rings.
-    pub(super) reorder_reach: i64,
+    pub(crate) reorder_reach: i64,
     /// The inverse normal CDF table of the hashed draws.
     inv_cdf: &'static [f32; INV_CDF + 1],
     /// Squared distances from a jittered centre outside which no ring has support (mm²).
-    pub(super) support2: (f64, f64),
+    pub(crate) support2: (f64, f64),
     seed: u32,
 }
 
@@ -663,13 +663,13 @@ impl Default for SpanScratch {
 pub struct Drawn {
     /// The jittered centre (mm).
     pub centre: (f64, f64),
-    dir: (f64, f64),
-    w_minus: f64,
-    w_inner: f64,
-    w_outer: f64,
-    planes: [(f64, f64); 3],
-    noise_word: u32,
-    weights: (f64, f64),
+    pub(crate) dir: (f64, f64),
+    pub(crate) w_minus: f64,
+    pub(crate) w_inner: f64,
+    pub(crate) w_outer: f64,
+    pub(crate) planes: [(f64, f64); 3],
+    pub(crate) noise_word: u32,
+    pub(crate) weights: (f64, f64),
     /// The ring's place in the milling order.
     pub key: Key,
 }
