@@ -41,6 +41,7 @@ pub mod render;
 pub mod shade;
 pub mod stats;
 pub mod stream;
+pub mod view;
 
 pub use error::{Error, Result};
 pub use raster::Raster;

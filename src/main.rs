@@ -183,6 +183,60 @@ enum Command {
         #[arg(long)]
         shade: bool,
     },
+    /// Scroll and zoom an endless surface in a window (or headless, for scripts and
+    /// screenshots): a bank, a milling .toml or a milling preset name.
+    ///
+    /// Drag or arrow keys pan; the wheel or +/- zoom; s/S next/previous seed; h height or
+    /// shaded view; l/k light azimuth/elevation; m mask view; q or Escape quits.
+    View {
+        /// Bank file, milling configuration (.toml) or milling preset name.
+        source: PathBuf,
+        /// Window width in pixels.
+        #[arg(long, default_value_t = 800)]
+        width: u32,
+        /// Window height in pixels.
+        #[arg(long, default_value_t = 600)]
+        height: u32,
+        /// x of the top-left screen pixel, in surface pixels.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        x: f64,
+        /// y of the top-left screen pixel, in surface pixels.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        y: f64,
+        /// Surface pixels per screen pixel (16: zoomed out 16×).
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+        scale: f64,
+        /// Placement seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u32,
+        /// Pixel spacing of a milling source, in µm.
+        #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
+        spacing: f64,
+        /// Start in the shaded view.
+        #[arg(long)]
+        shaded: bool,
+        /// Draw without a window (no display needed).
+        #[arg(long)]
+        headless: bool,
+        /// Frames to draw, then exit (default: the script's length plus one; a window
+        /// without a script stays open).
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Moves, one per frame: "pan DX DY [N]; zoom F [N]; wait [N]; settle; seed S;
+        /// view height|shaded|mask; light AZ EL; goto X Y; close".
+        #[arg(long, default_value = "")]
+        script: String,
+        /// Write the last frame to this PNG (8-bit RGBA).
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+        /// Page cache (RSGF, milling, and banks on a software GPU), in MiB.
+        #[arg(long, default_value_t = 256)]
+        cache_mb: usize,
+        /// Fill each frame of a bank on the GPU even on a software adapter, instead of
+        /// going through GPU-filled pages.
+        #[arg(long)]
+        direct: bool,
+    },
     /// Print the height at one point.
     Sample {
         /// Bank file.
@@ -690,6 +744,44 @@ fn run(command: Command) -> Result<()> {
                 start.elapsed().as_secs_f64()
             );
             Ok(())
+        }
+        Command::View {
+            source,
+            width,
+            height,
+            x,
+            y,
+            scale,
+            seed,
+            spacing,
+            shaded,
+            headless,
+            frames,
+            script,
+            screenshot,
+            cache_mb,
+            direct,
+        } => {
+            if let Some(path) = &screenshot {
+                check_output(path)?;
+            }
+            let options = surftile::view::ViewOptions {
+                width,
+                height,
+                seed,
+                x,
+                y,
+                scale,
+                spacing_um: spacing,
+                headless,
+                frames,
+                script: surftile::view::script::parse(&script)?,
+                screenshot,
+                cache_bytes: cache_mb.saturating_mul(1 << 20),
+                shaded,
+                direct,
+            };
+            surftile::view::run(&source, options)
         }
         Command::Sample { bank, x, y, seed } => {
             let (x, y) = (coordinate("x", x)?, coordinate("y", y)?);

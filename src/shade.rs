@@ -69,20 +69,39 @@ pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
         }
     });
     let l = options.light.normalize();
-    let v = options.view.normalize();
-    let half = (l + v).normalize();
+    let half = half_vector(l, options.view.normalize());
     let mut out = Vec::with_capacity(w * h);
     for y in 0..h {
         for x in 0..w {
             let (gx, gy) = grad(x, y);
-            let n = Vec3::new(-gx * scale, -gy * scale, 1.0).normalize();
-            let diffuse = n.dot(l).max(0.0);
-            let specular = n.dot(half).max(0.0).powf(options.shininess);
-            let r = options.ambient + options.diffuse * diffuse + options.specular * specular;
+            let r = reflectance(normal_from_gradient(gx, gy, scale), l, half, options);
             out.push((r.clamp(0.0, 1.0) * 255.0).round() as u8);
         }
     }
     out
+}
+
+/// The unit normal of a height field with slopes (gx, gy) (height per pixel), heights
+/// scaled by `exaggeration`. Twin: `normal_from_gradient` in `shaders/shade.wgsl`.
+#[inline]
+pub fn normal_from_gradient(gx: f32, gy: f32, exaggeration: f32) -> Vec3 {
+    Vec3::new(-gx * exaggeration, -gy * exaggeration, 1.0).normalize()
+}
+
+/// H, the unit bisector of the unit vectors toward the light `l` and the viewer `v`
+/// (seed 001, eq. (3)). Twin: `half_vector` in `shaders/shade.wgsl`.
+#[inline]
+pub fn half_vector(l: Vec3, v: Vec3) -> Vec3 {
+    (l + v).normalize()
+}
+
+/// R = C_a + k_d·max(N·L, 0) + k_s·max(H·N, 0)ⁿ (seed 001, eqs. (1)–(4)) for unit N, L
+/// and H. Twin: `reflectance` in `shaders/shade.wgsl`.
+#[inline]
+pub fn reflectance(n: Vec3, l: Vec3, half: Vec3, options: &ShadeOptions) -> f32 {
+    let diffuse = n.dot(l).max(0.0);
+    let specular = n.dot(half).max(0.0).powf(options.shininess);
+    options.ambient + options.diffuse * diffuse + options.specular * specular
 }
 
 #[cfg(test)]

@@ -211,3 +211,48 @@ fn views_map_to_levels_and_pages() {
     assert!(PageStreamer::new(Arc::new(Ramp), 256, 2, 512 << 10).is_err());
     assert!(PageStreamer::new(Arc::new(Ramp), 8, 2, 1 << 20).is_err());
 }
+
+/// The viewer's render loop for CPU-only sources (`surftile::view::compose`, what each
+/// frame of a streamed source runs) returns while every worker is blocked inside a
+/// fill: the frame shows nothing (NaN, drawn grey) yet, pages stay pending, and once the
+/// workers are let go the same call fills the frame with the surface's own values.
+#[test]
+fn the_viewers_frame_returns_while_workers_are_busy() {
+    let gated = Arc::new(Gated {
+        open: Mutex::new(false),
+        bell: Condvar::new(),
+        inside: AtomicUsize::new(0),
+    });
+    // Opens the gate however the test ends, so the streamer's drop can join its workers.
+    struct OpenOnDrop(Arc<Gated>);
+    impl Drop for OpenOnDrop {
+        fn drop(&mut self) {
+            *self.0.open.lock().unwrap() = true;
+            self.0.bell.notify_all();
+        }
+    }
+    let s = PageStreamer::new(gated.clone(), 64, 2, 8 << 20).unwrap();
+    let _gate = OpenOnDrop(gated.clone());
+    let region = Region::new(-37.0, 20.0, 96, 80);
+    let mut frame = vec![0.0f32; region.len()];
+    assert!(!surftile::view::compose(&s, &region, &mut frame));
+    wait_for("both workers to block", || {
+        gated.inside.load(Ordering::SeqCst) == 2
+    });
+    // 100 frames while both workers are stuck: each returns, incomplete.
+    for k in 0..100 {
+        frame.fill(0.0);
+        let moved = Region::new(region.x + k as f64, region.y, 96, 80);
+        assert!(!surftile::view::compose(&s, &moved, &mut frame));
+        assert!(frame.iter().all(|v| v.is_nan()), "frame {k}");
+        assert!(s.stats().pending > 0);
+    }
+    *gated.open.lock().unwrap() = true;
+    gated.bell.notify_all();
+    wait_for("a complete frame", || {
+        surftile::view::compose(&s, &region, &mut frame)
+    });
+    let mut want = vec![0.0f32; region.len()];
+    Ramp.fill(&region, &mut want).unwrap();
+    assert_eq!(frame, want);
+}

@@ -97,4 +97,22 @@ fn shader_functions_keep_the_cpu_names() {
             "hash_vertex",
         ],
     );
+    expect(
+        "milling",
+        &[
+            "part_of",
+            "along",
+            "weight",
+            "shape_plane",
+            "atan2_turns",
+            "noise_at",
+            "value",
+            "fold_drawn",
+            "adapt",
+        ],
+    );
+    expect(
+        "shade",
+        &["normal_from_gradient", "half_vector", "reflectance"],
+    );
 }

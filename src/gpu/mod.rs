@@ -18,6 +18,11 @@ mod shaders;
 pub use fill::{GpuSurface, HashInput, HashOutput, gpu_hashes};
 pub use shaders::{SHADER_FILES, composed_modules};
 
+/// The WGSL source of shader module `name` (`shade`, `blend`, …), as the GPU path compiles it.
+pub(crate) fn module_source(name: &str) -> String {
+    shaders::module(name)
+}
+
 /// The environment variable that makes a missing GPU adapter an error in tests.
 pub const REQUIRE_GPU_ENV: &str = "SURFTILE_REQUIRE_GPU";
 
@@ -26,7 +31,8 @@ pub fn gpu_required() -> bool {
     std::env::var(REQUIRE_GPU_ENV).is_ok_and(|v| !v.is_empty() && v != "0")
 }
 
-/// A device and its queue on the best adapter found.
+/// A device and its queue on the best adapter found. Clones share the device.
+#[derive(Clone)]
 pub struct Gpu {
     /// The device.
     pub device: wgpu::Device,
@@ -34,6 +40,25 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     /// What the adapter is (name, backend, software or hardware).
     pub info: wgpu::AdapterInfo,
+    /// The adapter.
+    pub adapter: wgpu::Adapter,
+}
+
+/// The backend sets to try in turn: all of them when `WGPU_BACKEND` narrows the choice,
+/// else the primary backends (Vulkan, Metal, DX12) and then GL.
+pub(crate) fn backend_tries() -> Vec<wgpu::Backends> {
+    if std::env::var_os("WGPU_BACKEND").is_some() {
+        vec![wgpu::Backends::all()]
+    } else {
+        vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY]
+    }
+}
+
+/// An instance on `backends`, with the `WGPU_*` environment applied.
+pub(crate) fn instance(backends: wgpu::Backends) -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = backends;
+    wgpu::Instance::new(desc.with_env())
 }
 
 impl Gpu {
@@ -45,17 +70,11 @@ impl Gpu {
     pub fn new() -> crate::Result<Gpu> {
         // The primary backends (Vulkan, Metal, DX12) first; GL only where none of them
         // has an adapter, as probing GL without a display prints warnings of its own.
-        let tries = if std::env::var_os("WGPU_BACKEND").is_some() {
-            vec![wgpu::Backends::all()]
-        } else {
-            vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY]
-        };
+        let tries = backend_tries();
         let mut failure = String::new();
         let mut found = None;
         for backends in tries {
-            let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-            desc.backends = backends;
-            let instance = wgpu::Instance::new(desc.with_env());
+            let instance = instance(backends);
             match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
                 power_preference: wgpu::PowerPreference::HighPerformance,
                 ..Default::default()
@@ -72,6 +91,11 @@ impl Gpu {
                 "no GPU adapter found ({failure}); install a Vulkan driver (on Debian, mesa-vulkan-drivers for software rendering)"
             ))
         })?;
+        Gpu::from_adapter(adapter)
+    }
+
+    /// Opens a device on `adapter`, with the adapter's own limits.
+    pub fn from_adapter(adapter: wgpu::Adapter) -> crate::Result<Gpu> {
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("surftile"),
@@ -83,6 +107,7 @@ impl Gpu {
             device,
             queue,
             info,
+            adapter,
         })
     }
 
@@ -111,6 +136,11 @@ impl GpuFilled {
         let gpu = Gpu::new()?;
         let surface = GpuSurface::new(&gpu.device, &gpu.queue, bank, seed)?;
         Ok(GpuFilled { gpu, surface })
+    }
+
+    /// A surface already on `gpu`'s device, filling there.
+    pub fn from_parts(gpu: Gpu, surface: GpuSurface) -> GpuFilled {
+        GpuFilled { gpu, surface }
     }
 
     /// The device in use.

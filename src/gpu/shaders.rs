@@ -9,6 +9,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("toroidal.wgsl", include_str!("../../shaders/toroidal.wgsl")),
     ("blend.wgsl", include_str!("../../shaders/blend.wgsl")),
     ("milling.wgsl", include_str!("../../shaders/milling.wgsl")),
+    ("shade.wgsl", include_str!("../../shaders/shade.wgsl")),
     (
         "hash_check.wgsl",
         include_str!("../../shaders/hash_check.wgsl"),
@@ -20,6 +21,7 @@ const MODULES: &[(&str, &[&str])] = &[
     ("toroidal", &["hash.wgsl", "toroidal.wgsl"]),
     ("blend", &["hash.wgsl", "blend.wgsl"]),
     ("milling", &["milling.wgsl"]),
+    ("shade", &["shade.wgsl"]),
     ("hash_check", &["hash.wgsl", "hash_check.wgsl"]),
 ];
 

@@ -111,7 +111,7 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f6
     )
 }
 
-/// Writes an 8-bit PNG (grey or RGB by `channels`) atomically to `path`.
+/// Writes an 8-bit PNG (grey, RGB or RGBA by `channels`: 1, 3 or 4) atomically to `path`.
 pub fn write_png8(
     path: &std::path::Path,
     width: usize,
@@ -119,10 +119,10 @@ pub fn write_png8(
     channels: usize,
     pixels: &[u8],
 ) -> Result<()> {
-    let color = if channels == 3 {
-        ColorType::Rgb
-    } else {
-        ColorType::Grayscale
+    let color = match channels {
+        3 => ColorType::Rgb,
+        4 => ColorType::Rgba,
+        _ => ColorType::Grayscale,
     };
     super::write_atomically(path, |w| {
         encode(w, width, height, color, BitDepth::Eight, pixels, None)

@@ -264,12 +264,13 @@ impl PageStreamer {
         self.shared.size
     }
 
-    /// The level a view reads: ⌊log2 scale⌋, within 0..=24.
+    /// The level a view reads: ⌊log2 scale⌋ (a scale within 10⁻⁹ below a power of two
+    /// counts as it), within 0..=24.
     pub fn level_for(&self, view: &View) -> u32 {
         if !(view.scale.is_finite() && view.scale > 1.0) {
             return 0;
         }
-        (view.scale.log2().floor() as u32).min(self.max_level)
+        ((view.scale.log2() + 1e-9).floor() as u32).min(self.max_level)
     }
 
     /// The pages of `level` that cover `view`, grown by `margin` pages on every side,
