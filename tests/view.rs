@@ -224,6 +224,14 @@ fn a_window_closed_mid_stream_exits_cleanly() {
     assert!(ok, "{err}");
     assert!(!err.contains("panicked"), "{err}");
     assert!(err.contains("4 frames"), "{err}");
+    // Closed mid-stream: pages were still queued or being filled.
+    let pending: usize = err
+        .split(" cancelled, ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no page count in: {err}"));
+    assert!(pending > 0, "nothing was pending at close: {err}");
 }
 
 /// No adapter (here: wgpu asked for Metal on Linux): one line naming the problem, and a

@@ -1031,7 +1031,10 @@ impl Session {
             .pages()
             .map(|p| {
                 let s = p.stats();
-                format!("; {} pages filled, {} cancelled", s.filled, s.cancelled)
+                format!(
+                    "; {} pages filled, {} cancelled, {} pending",
+                    s.filled, s.cancelled, s.pending
+                )
             })
             .unwrap_or_default();
         format!(
