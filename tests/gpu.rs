@@ -96,26 +96,38 @@ fn regions() -> Vec<Region> {
     ]
 }
 
+/// The max relative error (max |gpu − cpu| / max |cpu|) of a GPU fill of `r`, with
+/// both fills. Both must be finite and the CPU's not all zero.
+fn region_error(
+    cpu: &dyn surftile::stream::Surface,
+    gs: &GpuSurface,
+    g: &Gpu,
+    r: &Region,
+) -> (f64, Vec<f32>, Vec<f32>) {
+    let c = cpu.channels();
+    let mut a = vec![0.0f32; r.len() * c];
+    let mut b = vec![0.0f32; r.len() * c];
+    cpu.fill(r, &mut a).unwrap();
+    gs.fill(&g.device, &g.queue, r, &mut b).unwrap();
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64));
+    assert!(scale > 0.0 && b.iter().all(|v| v.is_finite()), "{r:?}");
+    let err = a
+        .iter()
+        .zip(&b)
+        .map(|(p, q)| (p - q).abs() as f64)
+        .fold(0.0, f64::max)
+        / scale;
+    (err, a, b)
+}
+
 /// The max relative error (max |gpu − cpu| / max |cpu|) of a GPU fill over every
 /// parity region, and whether integer step-1 regions matched bit for bit.
 fn parity(bank: &Bank, seed: u32, g: &Gpu) -> (f64, bool) {
     let cpu = open(bank, seed).unwrap();
     let gs = GpuSurface::new(&g.device, &g.queue, bank, seed).unwrap();
-    let c = bank.header.channels;
     let (mut worst, mut exact) = (0.0f64, true);
     for r in regions() {
-        let mut a = vec![0.0f32; r.len() * c];
-        let mut b = vec![0.0f32; r.len() * c];
-        cpu.fill(&r, &mut a).unwrap();
-        gs.fill(&g.device, &g.queue, &r, &mut b).unwrap();
-        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64));
-        assert!(scale > 0.0 && b.iter().all(|v| v.is_finite()), "{r:?}");
-        let err = a
-            .iter()
-            .zip(&b)
-            .map(|(p, q)| (p - q).abs() as f64)
-            .fold(0.0, f64::max)
-            / scale;
+        let (err, a, b) = region_error(cpu.as_ref(), &gs, g, &r);
         eprintln!("  {r:?}: max relative error {err:.2e}");
         worst = worst.max(err);
         if r.step == 1.0 && r.x.fract() == 0.0 && r.y.fract() == 0.0 {
@@ -203,7 +215,6 @@ fn toroidal_fills_match_the_cpu() {
 fn milling_fills_match_the_cpu() {
     use surftile::models::milling::config::{InteractionKind, ShapeKind};
     use surftile::models::milling::{MillingConfig, MillingSurface};
-    use surftile::stream::Surface;
     let Some(g) = gpu() else { return };
     let cases = [
         ("parallel-d4-ae05", ShapeKind::Bump, InteractionKind::Convex),
@@ -225,18 +236,7 @@ fn milling_fills_match_the_cpu() {
         let gs = GpuSurface::milling(&g.device, cpu.clone()).unwrap();
         let (mut worst, mut samples) = (0.0f64, 0usize);
         for r in regions() {
-            let mut a = vec![0.0f32; r.len()];
-            let mut b = vec![0.0f32; r.len()];
-            cpu.fill(&r, &mut a).unwrap();
-            gs.fill(&g.device, &g.queue, &r, &mut b).unwrap();
-            let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64));
-            assert!(scale > 0.0 && b.iter().all(|v| v.is_finite()), "{r:?}");
-            let err = a
-                .iter()
-                .zip(&b)
-                .map(|(p, q)| (p - q).abs() as f64)
-                .fold(0.0, f64::max)
-                / scale;
+            let (err, _, _) = region_error(&cpu, &gs, g, &r);
             worst = worst.max(err);
             samples += r.len();
         }

@@ -393,22 +393,15 @@ impl BankGpu {
             layout: &self.pipeline.get_bind_group_layout(0),
             entries: &entries,
         });
-        let groups = [
-            (region.width as u32).div_ceil(GROUP),
-            (region.height as u32).div_ceil(GROUP),
-        ];
-        let result = dispatch_and_read(
-            device,
-            queue,
+        dispatch_fill(
+            (device, queue),
             &self.pipeline,
             &bind,
-            groups,
+            region,
             &target,
-            bytes,
-            |b| copy_f32(b, out),
-        );
-        check_scope(scope, "filling a region")?;
-        result
+            out,
+            (scope, "filling a region"),
+        )
     }
 
     /// The toroidal rule's parameters and axes for `region` on levels `ls` (slot 1 read
@@ -675,6 +668,30 @@ pub(super) fn copy_f32(bytes: &[u8], out: &mut [f32]) {
             }
         }
     }
+}
+
+/// Runs a fill entry point (16 × 16 workgroups over `region`) and reads its f32 output
+/// `target` into `out`; then turns a validation error caught since `scope` into
+/// [`Error::Gpu`] saying what it was `doing`.
+pub(super) fn dispatch_fill(
+    (device, queue): (&wgpu::Device, &wgpu::Queue),
+    pipeline: &wgpu::ComputePipeline,
+    bind: &wgpu::BindGroup,
+    region: &Region,
+    target: &wgpu::Buffer,
+    out: &mut [f32],
+    (scope, doing): (wgpu::ErrorScopeGuard, &str),
+) -> Result<()> {
+    let groups = [
+        (region.width as u32).div_ceil(GROUP),
+        (region.height as u32).div_ceil(GROUP),
+    ];
+    let bytes = std::mem::size_of_val(out) as u64;
+    let result = dispatch_and_read(device, queue, pipeline, bind, groups, target, bytes, |b| {
+        copy_f32(b, out)
+    });
+    check_scope(scope, doing)?;
+    result
 }
 
 /// Dispatches `groups` workgroups of `pipeline`, copies `bytes` of `target` to a mapped

@@ -17,9 +17,7 @@
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
 
-use super::fill::{
-    bytes, check_scope, copy_f32, dispatch_and_read, entry, pipeline, storage, uniform,
-};
+use super::fill::{bytes, check_scope, dispatch_fill, entry, pipeline, storage, uniform};
 use crate::error::Result;
 use crate::models::milling::MillingSurface;
 use crate::models::milling::config::{InteractionKind, ShapeKind};
@@ -349,22 +347,15 @@ impl GpuMilling {
                 entry(8, &self.noise),
             ],
         });
-        let groups = [
-            (region.width as u32).div_ceil(16),
-            (region.height as u32).div_ceil(16),
-        ];
-        let result = dispatch_and_read(
-            device,
-            queue,
+        dispatch_fill(
+            (device, queue),
             &self.pipeline,
             &bind,
-            groups,
+            region,
             &target,
-            size,
-            |b| copy_f32(b, out),
-        );
-        check_scope(scope, "filling a milling region")?;
-        result?;
+            out,
+            (scope, "filling a milling region"),
+        )?;
         // The pixels at ring borders, in f64 on the host.
         let mut left = 0u64;
         for (r, row) in out.chunks_mut(region.width).enumerate() {

@@ -120,8 +120,9 @@ impl Gpu {
     }
 }
 
-/// A surface whose region fills run on the GPU, with single samples (and the fills'
-/// row kernel) on its CPU twin: what `surftile render --gpu` renders through.
+/// A surface whose region fills (and row fills, which are regions too) run on the GPU,
+/// with single samples on its CPU twin: what `surftile render --gpu` renders through,
+/// and what the viewer's page workers fill GPU pages with.
 pub struct GpuFilled {
     gpu: Gpu,
     surface: GpuSurface,
@@ -164,7 +165,18 @@ impl crate::stream::Surface for GpuFilled {
         rows: std::ops::Range<usize>,
         out: &mut [f32],
     ) {
-        self.surface.cpu().fill_rows(region, rows, out)
+        // Rows of a region are a region too: the GPU fills them (the page streamer's
+        // workers fill pages this way). Should the GPU fail (a lost device), the CPU
+        // twin gives the same values.
+        let on_gpu = region
+            .sub(0, rows.start, region.width, rows.len())
+            .and_then(|sub| {
+                self.surface
+                    .fill(&self.gpu.device, &self.gpu.queue, &sub, out)
+            });
+        if on_gpu.is_err() {
+            self.surface.cpu().fill_rows(region, rows, out)
+        }
     }
 
     fn fill(&self, region: &crate::stream::Region, out: &mut [f32]) -> crate::Result<()> {

@@ -29,7 +29,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::bank::Bank;
+use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
 use crate::gpu::{Gpu, GpuSurface};
 use crate::models::milling::{MillingConfig, MillingSurface};
@@ -225,36 +225,42 @@ impl Source {
         cache_bytes: usize,
         direct: bool,
     ) -> Result<Source> {
-        let (cpu, gpu_surface): (Arc<dyn Surface>, Result<GpuSurface>) = match spec {
+        // A milling frame can take longer than a frame's budget (zoomed out, every
+        // sample averages up to 4 × 4 points over hundreds of rings), and on a software
+        // adapter a full frame costs ~100 ms even for a bank: their pages are filled on
+        // the GPU by the streamer's workers, on a device of their own, so the render
+        // loop's queue never waits behind a page's dispatch.
+        let on_gpu = !matches!(spec, SourceSpec::Bank(b) if b.header.rule == Rule::Rsgf);
+        let paged = matches!(spec, SourceSpec::Milling { .. })
+            || (gpu.info.device_type == wgpu::DeviceType::Cpu && !direct);
+        let fill_gpu = if on_gpu && paged {
+            Gpu::from_adapter(gpu.adapter.clone())?
+        } else {
+            gpu.clone()
+        };
+        let (cpu, gpu_surface): (Arc<dyn Surface>, Option<GpuSurface>) = match spec {
             SourceSpec::Bank(bank) => (
                 Arc::from(open(bank, seed)?),
-                GpuSurface::new(&gpu.device, &gpu.queue, bank, seed),
+                on_gpu
+                    .then(|| GpuSurface::new(&fill_gpu.device, &fill_gpu.queue, bank, seed))
+                    .transpose()?,
             ),
             SourceSpec::Milling { .. } => {
                 let m = spec.milling(seed)?.expect("a milling spec");
-                let g = GpuSurface::milling(&gpu.device, m.clone());
-                (Arc::new(m), g)
+                let g = GpuSurface::milling(&fill_gpu.device, m.clone())?;
+                (Arc::new(m), Some(g))
             }
         };
         let fill = match gpu_surface {
-            // A milling frame can take longer than a frame's budget (zoomed out, every
-            // sample averages up to 4 × 4 points over hundreds of rings): its pages are
-            // filled on the GPU by the streamer's workers, so the render loop never waits.
-            // On a software adapter a full frame costs ~100 ms even for a bank: pages
-            // there too, unless per-frame fills were asked for.
-            Ok(g)
-                if matches!(spec, SourceSpec::Milling { .. })
-                    || (gpu.info.device_type == wgpu::DeviceType::Cpu && !direct) =>
-            {
-                let filled = Arc::new(crate::gpu::GpuFilled::from_parts(gpu.clone(), g));
+            Some(g) if paged => {
+                let filled = Arc::new(crate::gpu::GpuFilled::from_parts(fill_gpu, g));
                 Fill::Pages(PageStreamer::new(filled, PAGE, 2, cache_bytes)?)
             }
-            Ok(g) => Fill::Gpu(Box::new(g)),
-            Err(Error::Unsupported(_)) => {
+            Some(g) => Fill::Gpu(Box::new(g)),
+            None => {
                 let workers = default_threads().clamp(1, 16);
                 Fill::Pages(PageStreamer::new(cpu.clone(), PAGE, workers, cache_bytes)?)
             }
-            Err(e) => return Err(e),
         };
         let (range, exaggeration) = display_scales(cpu.as_ref())?;
         Ok(Source {
