@@ -13,6 +13,10 @@
 //! pixel lies within `tol` (≈ 32 f32 ulps of the ring's reach) of a ring's part border,
 //! where the model is discontinuous, the shader leaves it to the host, which computes it
 //! in f64 as the CPU does; so the GPU fill matches the CPU's even at the borders.
+//!
+//! Far zoomed out, where a 32-sample block spans more than four ring reaches, the band
+//! is filled by the CPU's O(1) sampler instead (per-block lists would grow with the
+//! square of the block's extent).
 
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
@@ -215,6 +219,14 @@ impl GpuMilling {
         let s = &self.surface;
         let m = s.ring_model();
         let mm = s.mm_per_px();
+        // A block's ring list grows with the square of its extent. Once a block spans
+        // several tool diameters (far zoomed out: 32 samples > 4 reaches), the lists would
+        // hold thousands of rings each, while the CPU's sampler stays O(1) per point: fill
+        // such bands there, with the same values.
+        if BLOCK as f64 * region.step * mm > 4.0 * m.reach_out {
+            s.fill_rows(region, 0..region.height, out);
+            return Ok(());
+        }
         let n = footprint_points(region.step);
         let origin = (region.x_at(0) * mm, region.y_at(0) * mm);
         // Footprint point offsets, as sample_footprint places them (mm).
