@@ -25,13 +25,27 @@ struct Xvfb {
 static ONE_SERVER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 impl Drop for Xvfb {
+    /// SIGTERM first, so that the server removes its socket and lock files (a killed one
+    /// leaves them behind).
     fn drop(&mut self) {
+        let term = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        if term.is_ok_and(|s| s.success()) {
+            for _ in 0..100 {
+                if let Ok(Some(_)) = self.child.try_wait() {
+                    return;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
 }
 
-/// Starts Xvfb, or says why not (a failure when the GPU tests are required).
+/// Starts Xvfb on a display it picks itself (`-displayfd`), or says why not (a failure
+/// when the GPU tests are required).
 fn xvfb() -> Option<Xvfb> {
     let skip = |why: String| {
         assert!(!gpu_required(), "SURFTILE_REQUIRE_GPU is set, but {why}");
@@ -42,46 +56,42 @@ fn xvfb() -> Option<Xvfb> {
         return skip(e.to_string());
     }
     let guard = ONE_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    for n in 90..110 {
-        let display = format!(":{n}");
-        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-            continue;
+    let mut child = match Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "1024x768x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+    {
+        Ok(c) => c,
+        Err(e) => return skip(format!("Xvfb could not start: {e}")),
+    };
+    // Xvfb writes the display number once it accepts connections (EOF if it failed).
+    let mut line = String::new();
+    let read = child
+        .stdout
+        .take()
+        .map(|out| std::io::BufRead::read_line(&mut std::io::BufReader::new(out), &mut line));
+    let number = line.trim().parse::<u32>();
+    let x = Xvfb {
+        child,
+        display: format!(":{}", line.trim()),
+        _one_at_a_time: guard,
+    };
+    match (read, number) {
+        (Some(Ok(_)), Ok(_)) => Some(x),
+        _ => {
+            drop(x);
+            skip("Xvfb did not report a display".into())
         }
-        let child = match Command::new("Xvfb")
-            .args([
-                display.as_str(),
-                "-screen",
-                "0",
-                "1024x768x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-        {
-            Ok(c) => c,
-            Err(e) => return skip(format!("Xvfb could not start: {e}")),
-        };
-        let mut x = Xvfb {
-            child,
-            display,
-            _one_at_a_time: guard,
-        };
-        for _ in 0..100 {
-            if let Ok(Some(_)) = x.child.try_wait() {
-                break;
-            }
-            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-                return Some(x);
-            }
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        }
-        let _ = x.child.kill();
-        let _ = x.child.wait();
-        return skip(format!("Xvfb did not start on {}", x.display));
     }
-    skip("no free display for Xvfb".into())
 }
 
 /// Width, height and RGBA bytes of an 8-bit RGBA PNG.
