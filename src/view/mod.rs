@@ -231,8 +231,11 @@ impl Source {
         // the GPU by the streamer's workers, on a device of their own, so the render
         // loop's queue never waits behind a page's dispatch.
         let on_gpu = !matches!(spec, SourceSpec::Bank(b) if b.header.rule == Rule::Rsgf);
-        let paged = matches!(spec, SourceSpec::Milling { .. })
-            || (gpu.info.device_type == wgpu::DeviceType::Cpu && !direct);
+        let milling = match spec {
+            SourceSpec::Milling { .. } => true,
+            SourceSpec::Bank(b) => b.header.rule == Rule::Milling,
+        };
+        let paged = milling || (gpu.info.device_type == wgpu::DeviceType::Cpu && !direct);
         let fill_gpu = if on_gpu && paged {
             Gpu::from_adapter(gpu.adapter.clone())?
         } else {
