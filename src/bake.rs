@@ -516,13 +516,7 @@ impl Baker {
                 self.taper
             ),
         };
-        let bank = Bank {
-            header,
-            texels,
-            luts,
-        };
-        bank.validate(source)?;
-        Ok(bank)
+        Bank::new(header, texels, luts, source)
     }
 }
 
@@ -693,13 +687,7 @@ impl Baker {
             rsgf: None,
         };
         let luts = vec![Vec::new(); texels.len()];
-        let bank = Bank {
-            header,
-            texels,
-            luts,
-        };
-        bank.validate("just baked")?;
-        Ok(bank)
+        Bank::new(header, texels, luts, "just baked")
     }
 }
 

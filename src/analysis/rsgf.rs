@@ -147,11 +147,5 @@ pub(crate) fn bake(
         rsgf: Some(params),
     };
     let luts = vec![Vec::new(); texels.len()];
-    let bank = Bank {
-        header,
-        texels,
-        luts,
-    };
-    bank.validate("just baked")?;
-    Ok(bank)
+    Bank::new(header, texels, luts, "just baked")
 }

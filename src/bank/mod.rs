@@ -177,6 +177,23 @@ pub struct Bank {
 }
 
 impl Bank {
+    /// A bank of `header`, `texels` and `luts`, validated ([`Bank::validate`]); `what`
+    /// names it in errors.
+    pub fn new(
+        header: BankHeader,
+        texels: Vec<Vec<f32>>,
+        luts: Vec<Vec<f32>>,
+        what: &str,
+    ) -> Result<Bank> {
+        let bank = Bank {
+            header,
+            texels,
+            luts,
+        };
+        bank.validate(what)?;
+        Ok(bank)
+    }
+
     /// Checks that the header is coherent and the data matches it. `what` names the
     /// bank in errors.
     pub fn validate(&self, what: &str) -> Result<()> {

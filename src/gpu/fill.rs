@@ -722,23 +722,35 @@ pub(super) fn dispatch_and_read<T>(
     }
     encoder.copy_buffer_to_buffer(target, 0, &staging, 0, bytes);
     queue.submit([encoder.finish()]);
-    let slice = staging.slice(..);
+    read_mapped(device, &staging, "the fill", read)
+}
+
+/// Maps `buffer` (MAP_READ, its copy already submitted), waits for the device, hands
+/// the bytes to `read` and unmaps; `what` names the data in errors.
+pub(crate) fn read_mapped<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    what: &str,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T> {
+    let slice = buffer.slice(..);
     let (tx, rx) = mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
+    let failed = |e: String| Error::Gpu(format!("reading {what} back: {e}"));
     device
         .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::Gpu(format!("waiting for the fill: {e}")))?;
+        .map_err(|e| failed(e.to_string()))?;
     rx.recv()
-        .map_err(|_| Error::Gpu("the read-back was dropped".into()))?
-        .map_err(|e| Error::Gpu(format!("reading the fill back: {e}")))?;
+        .map_err(|_| failed("the mapping was dropped".into()))?
+        .map_err(|e| failed(e.to_string()))?;
     let data = read(
         &slice
             .get_mapped_range()
-            .map_err(|e| Error::Gpu(format!("reading the fill back: {e}")))?,
+            .map_err(|e| failed(e.to_string()))?,
     );
-    staging.unmap();
+    buffer.unmap();
     Ok(data)
 }
 

@@ -15,6 +15,7 @@ mod fill;
 mod milling;
 mod shaders;
 
+pub(crate) use fill::read_mapped;
 pub use fill::{GpuSurface, HashInput, HashOutput, gpu_hashes};
 pub use shaders::{SHADER_FILES, composed_modules};
 

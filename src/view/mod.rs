@@ -274,17 +274,13 @@ impl Source {
         })
     }
 
-    /// True when frames come from the page streamer.
-    pub fn streamed(&self) -> bool {
-        matches!(self.fill, Fill::Pages(_))
-    }
-
     /// The grey ramp's (black, white) heights.
     pub fn range(&self) -> (f32, f32) {
         self.range
     }
 
-    /// The page streamer, for CPU-only sources.
+    /// The page streamer, when frames come from pages (RSGF, milling, banks on a
+    /// software adapter).
     pub fn pages(&self) -> Option<&PageStreamer> {
         match &self.fill {
             Fill::Pages(p) => Some(p),
@@ -700,27 +696,13 @@ impl Renderer {
             },
         );
         gpu.queue.submit([encoder.finish()]);
-        let slice = buffer.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("reading the frame back: {e}")))?;
-        rx.recv()
-            .map_err(|_| Error::Gpu("the frame read-back was dropped".into()))?
-            .map_err(|e| Error::Gpu(format!("reading the frame back: {e}")))?;
-        let data = slice
-            .get_mapped_range()
-            .map_err(|e| Error::Gpu(format!("reading the frame back: {e}")))?;
-        let mut out = Vec::with_capacity(w * h * 4);
-        for r in 0..h {
-            out.extend_from_slice(&data[r * row..r * row + w * 4]);
-        }
-        drop(data);
-        buffer.unmap();
-        Ok(out)
+        crate::gpu::read_mapped(&gpu.device, &buffer, "the frame", |data| {
+            let mut out = Vec::with_capacity(w * h * 4);
+            for r in 0..h {
+                out.extend_from_slice(&data[r * row..r * row + w * 4]);
+            }
+            out
+        })
     }
 }
 

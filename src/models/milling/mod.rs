@@ -538,13 +538,12 @@ impl MillingSurface {
             }),
             rsgf: None,
         };
-        let bank = Bank {
+        Bank::new(
             header,
-            texels: vec![self.noise.clone()],
-            luts: vec![self.lut.clone()],
-        };
-        bank.validate(source)?;
-        Ok(bank)
+            vec![self.noise.clone()],
+            vec![self.lut.clone()],
+            source,
+        )
     }
 
     /// The surface a milling bank describes, with placement seed `seed` for the rings
