@@ -84,6 +84,7 @@ pub struct Baker {
     tile: Option<[usize; 2]>,
     overlap: Option<usize>,
     rsgf: RsgfOptions,
+    colours: usize,
 }
 
 /// Builder for [`Baker`]; every setter documents its default.
@@ -165,6 +166,12 @@ impl BakerBuilder {
         self.0.overlap = Some(px);
         self
     }
+    /// Quilt: colours per edge direction K (1 to 8; the bank holds K⁴ Wang tiles).
+    /// Default: 2 (16 tiles).
+    pub fn colours(mut self, k: usize) -> Self {
+        self.0.colours = k;
+        self
+    }
     /// RSGF: block, border, tolerance, metric and stochastic mode. Default:
     /// [`RsgfOptions::default`] (the paper's 40 px blocks, 10 px borders, ±3 px, SSD).
     pub fn rsgf(mut self, options: RsgfOptions) -> Self {
@@ -182,6 +189,16 @@ impl BakerBuilder {
             ));
         }
         b.rsgf.params((1, 0), (0, 1)).validate()?;
+        if !(1..=crate::analysis::quilt::MAX_COLOURS).contains(&b.colours) {
+            return Err(Error::param(
+                "colours",
+                b.colours,
+                format!(
+                    "1 to {} colours per edge direction (K⁴ Wang tiles)",
+                    crate::analysis::quilt::MAX_COLOURS
+                ),
+            ));
+        }
         if !(1..=64).contains(&b.tiles) {
             return Err(Error::param("tiles", b.tiles, "1 to 64 tiles"));
         }
@@ -264,6 +281,7 @@ impl Baker {
             tile: None,
             overlap: None,
             rsgf: RsgfOptions::default(),
+            colours: 2,
         })
     }
 
@@ -326,6 +344,7 @@ impl Baker {
     ) -> Result<Bank> {
         match self.method {
             Method::Roller => return self.bake_roller(image, source, progress),
+            Method::Quilt => return self.bake_quilt(image, source, progress),
             Method::Milling => {
                 return Err(Error::param(
                     "method",
@@ -404,7 +423,7 @@ impl Baker {
             let patch = match self.method {
                 Method::Adsn => asymptotic_spot_noise(&crops, pw, ph, &mut rng),
                 // The roller returned at the top of `bake`.
-                Method::Rpn | Method::Roller | Method::Milling | Method::Rsgf => {
+                Method::Rpn | Method::Roller | Method::Milling | Method::Rsgf | Method::Quilt => {
                     random_phase_noise(&crops, pw, ph, &mut rng)
                 }
             };
@@ -504,6 +523,7 @@ impl Baker {
             seam_costs: Vec::new(),
             milling: None,
             rsgf: None,
+            wang_colours: None,
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
@@ -521,6 +541,100 @@ impl Baker {
 }
 
 impl Baker {
+    /// Wang tiles (quilt): K⁴ tiles of T × T px quilted from crops
+    /// ([`crate::analysis::quilt`]), each with its own 2 × 2 box mip chain, into a Wang
+    /// bank. T is `--patch`, or the largest power of two (at most 256) whose tile plus
+    /// strip ends fits the exemplar; `--overlap` is the cut band. Heights are kept as
+    /// measured.
+    fn bake_quilt(
+        &self,
+        image: &ImageFile,
+        source: &str,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Bank> {
+        use crate::analysis::quilt::{WangLayout, wang_tiles};
+        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let (w, h, c) = (ex.width, ex.height, ex.channels);
+        let side = match self.patch {
+            Some(p) => p,
+            None => {
+                let mut t = 256usize;
+                while t > 16
+                    && WangLayout::new(self.colours, t, self.overlap)
+                        .map_or(true, |l| l.min_exemplar() > w.min(h))
+                {
+                    t /= 2;
+                }
+                t
+            }
+        };
+        let layout = WangLayout::new(self.colours, side, self.overlap)?;
+        progress(&format!(
+            "exemplar {w}×{h}×{c}; {} Wang tiles ({} colours) of {side}×{side} px, edge strips {} px, cut band {} px",
+            layout.tiles(),
+            layout.colours,
+            2 * layout.edge,
+            layout.band
+        ));
+        let wt = wang_tiles(&ex, layout, self.seed, source, progress)?;
+        let k = layout.tiles();
+        let mut flat: Vec<f32> = wt.tiles.concat();
+        let mut texels = Vec::new();
+        let mut levels = Vec::new();
+        let mut s = side;
+        loop {
+            let (mean, sigma) = channel_stats(&flat, c);
+            levels.push(LevelInfo {
+                size: [s, s],
+                mean,
+                sigma,
+                shift: Some(0),
+            });
+            if s / 2 < MIN_LEVEL_SIDE || levels.len() == 14 {
+                texels.push(flat);
+                break;
+            }
+            let next = box_half(&flat, k, s, s, c);
+            texels.push(std::mem::replace(&mut flat, next));
+            s /= 2;
+        }
+        progress(&format!("{} mip levels", levels.len()));
+        let t = side as f64;
+        let header = BankHeader {
+            rule: Rule::Wang,
+            method: Method::Quilt,
+            channels: c,
+            tiles: k,
+            tile_size: [side, side],
+            lattice: [[t, 0.0], [0.0, t]],
+            triangle_edge: 0.0,
+            levels,
+            spacing_um,
+            height_unit: height_unit(c, spacing_um),
+            seed: self.seed,
+            lut_size: 0,
+            lut_z_range: 0.0,
+            exemplar: exemplar_info(&ex, source),
+            bake: format!(
+                "method=quilt colours={} patch={side} edge={} band={} seed={} level={:?} downsample={} filter={:?} fill_missing={}",
+                layout.colours,
+                layout.edge,
+                layout.band,
+                self.seed,
+                self.leveling,
+                self.downsample,
+                self.filter,
+                self.fill_missing
+            ),
+            seam_costs: wt.seam_costs,
+            milling: None,
+            rsgf: None,
+            wang_colours: Some(layout.colours),
+        };
+        let luts = vec![Vec::new(); texels.len()];
+        Bank::new(header, texels, luts, "just baked")
+    }
+
     /// The roller (seed 003): lattice from `--lattice`, `--tile`, detection, or the
     /// largest axis-aligned tile that leaves the overlap; then double toroidal tiles and
     /// toroidal mips, into a toroidal bank. Heights are kept as measured (no T).
@@ -685,6 +799,7 @@ impl Baker {
             seam_costs: rt.seam_costs,
             milling: None,
             rsgf: None,
+            wang_colours: None,
         };
         let luts = vec![Vec::new(); texels.len()];
         Bank::new(header, texels, luts, "just baked")

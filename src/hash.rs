@@ -92,6 +92,19 @@ pub fn pick_tile(h: u32, k: u32) -> u32 {
     ((h >> 16) * k) >> 16
 }
 
+/// The Wang tile of cell (i, j) with K colours per edge direction (ALGORITHMS.md §6):
+/// the vertical edge left of cell (i, j) has colour `pick_tile(hash_cell(seed, i, j, 1)[0], K)`,
+/// the horizontal edge below it (row 0 side) `pick_tile(hash_cell(seed, i, j, 2)[0], K)`;
+/// the cell shows tile ((W·K + E)·K + S)·K + N with W, E its left and right vertical
+/// edges and S, N its row-0 and far horizontal edges.
+#[inline(always)]
+pub fn wang_tile(seed: u32, i: i64, j: i64, k: u32) -> u32 {
+    let colour = |i: i64, j: i64, stream: u32| pick_tile(hash_cell(seed, i, j, stream)[0], k);
+    let (w, e) = (colour(i, j, 1), colour(i.wrapping_add(1), j, 1));
+    let (s, n) = (colour(i, j, 2), colour(i, j.wrapping_add(1), 2));
+    ((w * k + e) * k + s) * k + n
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -38,6 +38,7 @@ pub mod lattice;
 pub mod models;
 pub mod raster;
 pub mod render;
+pub mod sandblast;
 pub mod shade;
 pub mod stats;
 pub mod stream;

@@ -15,9 +15,10 @@ use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::{Bank, Method, Rule};
 use surftile::demo::run_demo;
-use surftile::io::{ReadOptions, parse_shape, read_image};
+use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::render::{checked_size, render_to_file};
+use surftile::sandblast::Sandblast;
 use surftile::stats::compare;
 use surftile::stream::Metric;
 use surftile::stream::{Region, Surface};
@@ -135,6 +136,53 @@ enum Command {
         /// RSGF: stochastic mode, v1 = (1, 0) and v2 = (0, 1), no lattice estimation.
         #[arg(long)]
         stochastic: bool,
+        /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
+        #[arg(long, default_value_t = 2)]
+        colours: usize,
+    },
+    /// Seed 000's sandblast pipeline: a height map of any size at any coarser spacing
+    /// from one measurement (down-sample, then crop + RPN, or RPN patches EF-stitched).
+    Sandblast {
+        /// Measured height map: .png, .tif/.tiff, .npy, or .raw/.f32 (with --raw-shape).
+        exemplar: PathBuf,
+        /// Target pixel spacing in µm (at least the measurement's); default: the measurement's.
+        #[arg(long)]
+        spacing: Option<f64>,
+        /// The measurement's pixel spacing in µm, overriding its file's.
+        #[arg(long)]
+        exemplar_spacing: Option<f64>,
+        /// Output width in pixels.
+        #[arg(long)]
+        w: usize,
+        /// Output height in pixels.
+        #[arg(long)]
+        h: usize,
+        /// Output file: .png (16-bit), .tif (f32) or .npy (f32).
+        #[arg(long)]
+        out: PathBuf,
+        /// Patch side for stitching, in pixels; default: the smaller side of the
+        /// down-sampled measurement, at most 512.
+        #[arg(long)]
+        patch: Option<usize>,
+        /// Overlap of neighbouring patches in pixels; default: half the patch.
+        #[arg(long)]
+        overlap: Option<usize>,
+        /// Seed of crop positions and random phases.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Padded RPN with a sigmoid border instead of stitching (seed 000, Fig. 8).
+        #[arg(long)]
+        padded: bool,
+        /// Map the output back to the measured height distribution (Gaussianise before
+        /// RPN, measured quantiles after it).
+        #[arg(long)]
+        match_histogram: bool,
+        /// Fill missing (NaN) points smoothly instead of refusing the measurement.
+        #[arg(long)]
+        fill_missing: bool,
+        /// Shape of a raw f32 exemplar: WxH or WxHxC.
+        #[arg(long)]
+        raw_shape: Option<String>,
     },
     /// Render a region of the infinite surface to .png (16-bit), .tif (f32) or .npy (f32).
     Render {
@@ -592,6 +640,7 @@ fn run(command: Command) -> Result<()> {
             tolerance,
             metric,
             stochastic,
+            colours,
         } => {
             if method == Method::Milling {
                 return bake_milling(&exemplar, spacing, seed, &out);
@@ -609,13 +658,28 @@ fn run(command: Command) -> Result<()> {
                 .fill_missing(fill_missing)
                 .taper(taper)
                 .tiles(tiles);
-            if method != Method::Roller && (tile.is_some() || overlap.is_some() || tiles != 1) {
+            if method != Method::Roller && (tile.is_some() || tiles != 1) {
                 return Err(Error::param(
                     "method",
                     method,
-                    "roller when --tiles, --tile or --overlap is given",
+                    "roller when --tiles or --tile is given",
                 ));
             }
+            if !matches!(method, Method::Roller | Method::Quilt) && overlap.is_some() {
+                return Err(Error::param(
+                    "method",
+                    method,
+                    "roller or quilt when --overlap is given",
+                ));
+            }
+            if method != Method::Quilt && colours != 2 {
+                return Err(Error::param(
+                    "method",
+                    method,
+                    "quilt when --colours is given",
+                ));
+            }
+            builder = builder.colours(colours);
             if !matches!(method, Method::Roller | Method::Rsgf) && lattice.is_some() {
                 return Err(Error::param(
                     "method",
@@ -707,6 +771,54 @@ fn run(command: Command) -> Result<()> {
                 out.display(),
                 region.width,
                 region.height,
+                start.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        Command::Sandblast {
+            exemplar,
+            spacing,
+            exemplar_spacing,
+            w,
+            h,
+            out,
+            patch,
+            overlap,
+            seed,
+            padded,
+            match_histogram,
+            fill_missing,
+            raw_shape,
+        } => {
+            let mut b = Sandblast::builder(w, h)
+                .seed(seed)
+                .padded(padded)
+                .match_histogram(match_histogram)
+                .fill_missing(fill_missing);
+            if let Some(s) = spacing {
+                b = b.spacing_um(s);
+            }
+            if let Some(s) = exemplar_spacing {
+                b = b.exemplar_spacing_um(s);
+            }
+            if let Some(p) = patch {
+                b = b.patch(p);
+            }
+            if let Some(o) = overlap {
+                b = b.overlap(o);
+            }
+            let pipeline = b.build()?;
+            check_output(&out)?;
+            let start = Instant::now();
+            let image = read_image(&exemplar, &raw_options(&raw_shape)?)?;
+            let source = exemplar.display().to_string();
+            let made = pipeline.run(&image, &source, &mut |l| eprintln!("sandblast: {l}"))?;
+            write_heights(&out, &made.raster, made.spacing_um)?;
+            eprintln!(
+                "sandblast: wrote {} ({w}×{h}{}) in {:.2} s",
+                out.display(),
+                made.spacing_um
+                    .map_or(String::new(), |s| format!(" at {s} µm")),
                 start.elapsed().as_secs_f64()
             );
             Ok(())
@@ -841,6 +953,20 @@ fn run(command: Command) -> Result<()> {
                                 p.border_px,
                                 p.tolerance_px,
                                 p.metric
+                            );
+                        }
+                    }
+                    Rule::Wang => {
+                        println!(
+                            "rule        wang: {} colours per edge direction, {} tiles of {}×{} px on a square lattice",
+                            h.wang_colours.unwrap_or(0),
+                            h.tiles,
+                            h.tile_size[0],
+                            h.tile_size[1]
+                        );
+                        if let [v, i] = h.seam_costs[..] {
+                            println!(
+                                "seam cost   vertex cuts {v:.4e}, interior cuts {i:.4e} (mean squared error per seam pixel)"
                             );
                         }
                     }

@@ -145,6 +145,7 @@ pub(crate) fn bake(
         seam_costs: Vec::new(),
         milling: None,
         rsgf: Some(params),
+        wang_colours: None,
     };
     let luts = vec![Vec::new(); texels.len()];
     Bank::new(header, texels, luts, "just baked")

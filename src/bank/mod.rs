@@ -43,6 +43,10 @@ pub enum Rule {
     /// Random sampling and gap filling (seed 002 §4): no tiles; the bank holds the
     /// exemplar (as one tile, with its mips), the lattice and the synthesis parameters.
     Rsgf,
+    /// Wang tiles with hashed edge colours (quilt banks; Cohen et al. 2003): K⁴ square
+    /// tiles, each edge's colour from the hash of the edge, the cell showing the tile
+    /// whose four colours match. Stored like a toroidal bank on a square lattice.
+    Wang,
 }
 
 impl std::fmt::Display for Rule {
@@ -52,6 +56,7 @@ impl std::fmt::Display for Rule {
             Rule::Toroidal => "toroidal",
             Rule::Milling => "milling",
             Rule::Rsgf => "rsgf",
+            Rule::Wang => "wang",
         })
     }
 }
@@ -70,6 +75,9 @@ pub enum Method {
     Milling,
     /// Near-regular random sampling and gap filling (seed 002 §4).
     Rsgf,
+    /// Wang tiles quilted from crops with minimum-error seams (seed 000 §3.2.1 cuts,
+    /// Cohen et al. 2003).
+    Quilt,
 }
 
 impl std::fmt::Display for Method {
@@ -80,6 +88,7 @@ impl std::fmt::Display for Method {
             Method::Roller => "roller",
             Method::Milling => "milling",
             Method::Rsgf => "rsgf",
+            Method::Quilt => "quilt",
         })
     }
 }
@@ -163,6 +172,9 @@ pub struct BankHeader {
     /// RSGF rule: the synthesis parameters and the lattice.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rsgf: Option<crate::stream::RsgfParams>,
+    /// Wang rule: colours per edge direction, K (the bank holds K⁴ tiles).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wang_colours: Option<usize>,
 }
 
 /// A bank in memory: header, texels per level and T⁻¹ tables per level.
@@ -212,7 +224,17 @@ impl Bank {
             return self.validate_rsgf(what);
         }
         let [w, ht] = h.tile_size;
-        let toroidal = h.rule == Rule::Toroidal;
+        let toroidal = matches!(h.rule, Rule::Toroidal | Rule::Wang);
+        if h.rule == Rule::Wang {
+            let k = h.wang_colours.unwrap_or(0);
+            let b = h.levels.first().and_then(|l| l.shift);
+            if k == 0 || k.checked_pow(4) != Some(h.tiles) || w != ht || b != Some(0) {
+                return bad(format!(
+                    "Wang bank with {:?} colours, {} tiles of {w}×{ht}, row shift {b:?}; expected K⁴ square tiles on a square lattice",
+                    h.wang_colours, h.tiles
+                ));
+            }
+        }
         let lattice = if toroidal {
             if w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 26 {
                 return bad(format!(

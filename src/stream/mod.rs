@@ -27,7 +27,7 @@ use crate::error::{Error, Result};
 pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
     Ok(match bank.header.rule {
         Rule::Blend => Box::new(BlendSurface::new(bank, seed)?),
-        Rule::Toroidal => Box::new(ToroidalSurface::new(bank, seed)?),
+        Rule::Toroidal | Rule::Wang => Box::new(ToroidalSurface::new(bank, seed)?),
         Rule::Milling => Box::new(crate::models::milling::MillingSurface::from_bank(
             bank, seed,
         )?),

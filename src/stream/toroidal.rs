@@ -9,7 +9,7 @@ use std::ops::Range;
 use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
-use crate::hash::{hash_tile, pick_tile};
+use crate::hash::{hash_tile, pick_tile, wang_tile};
 use crate::lattice::Lattice;
 
 /// One mip level: the level lattice's HNF and the tiles stored on it.
@@ -139,13 +139,17 @@ pub struct ToroidalSurface {
     /// For several tiles on an oblique lattice: the reduced basis whose rhomboid cells
     /// ⌊B⁻¹·p⌋ are what the tiles were cut in.
     pub(crate) rhomboid: Option<Rhomboid>,
+    /// For a Wang bank ([`Rule::Wang`]): K, the colours per edge direction; the cell
+    /// shows [`wang_tile`] instead of a hashed pick.
+    pub(crate) wang: Option<u32>,
 }
 
 impl ToroidalSurface {
-    /// A surface over `bank` (which must use the toroidal rule), placed with `seed`.
+    /// A surface over `bank` (which must use the toroidal or the Wang rule), placed with
+    /// `seed`. A Wang bank is a square lattice whose cells pick their tile by edge colours.
     pub fn new(bank: &Bank, seed: u32) -> Result<ToroidalSurface> {
         let h = &bank.header;
-        if h.rule != Rule::Toroidal {
+        if !matches!(h.rule, Rule::Toroidal | Rule::Wang) {
             return Err(Error::Unsupported(format!(
                 "rule {} in a toroidal surface",
                 h.rule
@@ -179,7 +183,8 @@ impl ToroidalSurface {
         // border pixel falls on, where the tiles agree); on an oblique one the HNF rows
         // cut through them, so the tile is chosen by rhomboid cell instead.
         let l0 = &levels[0];
-        let rhomboid = (h.tiles > 1 && l0.b != 0).then(|| {
+        let wang = (h.rule == Rule::Wang).then(|| h.wang_colours.unwrap_or(1) as u32);
+        let rhomboid = (h.tiles > 1 && l0.b != 0 && wang.is_none()).then(|| {
             let [u, v] = Lattice {
                 a: l0.a,
                 b: l0.b,
@@ -200,6 +205,7 @@ impl ToroidalSurface {
             tiles: h.tiles as u32,
             levels,
             rhomboid,
+            wang,
         })
     }
 
@@ -233,6 +239,9 @@ impl ToroidalSurface {
     fn tile_of(&self, l: usize, i: i64, j: i64, x: i64, y: i64) -> usize {
         if self.tiles == 1 {
             return 0;
+        }
+        if let Some(k) = self.wang {
+            return wang_tile(self.seed, i, j, k) as usize;
         }
         let (i, j) = self.rhomboid_cell(x << l, y << l).unwrap_or((i, j));
         pick_tile(hash_tile(self.seed, i, j), self.tiles) as usize

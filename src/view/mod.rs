@@ -230,7 +230,8 @@ impl Source {
         // adapter a full frame costs ~100 ms even for a bank: their pages are filled on
         // the GPU by the streamer's workers, on a device of their own, so the render
         // loop's queue never waits behind a page's dispatch.
-        let on_gpu = !matches!(spec, SourceSpec::Bank(b) if b.header.rule == Rule::Rsgf);
+        // RSGF and Wang banks have no GPU twin: CPU pages.
+        let on_gpu = !matches!(spec, SourceSpec::Bank(b) if matches!(b.header.rule, Rule::Rsgf | Rule::Wang));
         let milling = match spec {
             SourceSpec::Milling { .. } => true,
             SourceSpec::Bank(b) => b.header.rule == Rule::Milling,

@@ -537,6 +537,7 @@ impl MillingSurface {
                 adaptation: self.adaptation,
             }),
             rsgf: None,
+            wang_colours: None,
         };
         Bank::new(
             header,

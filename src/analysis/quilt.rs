@@ -1,0 +1,579 @@
+//! Wang tiles with hashed edges (DESIGN.md rule 2, ALGORITHMS.md §6; Cohen et al. 2003,
+//! Wei 2004), quilted from crops of the exemplar with minimum-error seams
+//! ([`crate::analysis::cut`]).
+//!
+//! With K colours per edge direction there are K⁴ tiles of T × T pixels; tile
+//! `((W·K + E)·K + S)·K + N` has colour W on its column-0 edge, E on the edge after its
+//! last column, S on its row-0 edge and N after its last row. A cell edge runs *between*
+//! two pixel columns (or rows) and through the middle of a sample of its colour:
+//!
+//! - **Edge strips.** For each colour and direction one crop, 2e px across and T + 2e px
+//!   along, centred on the edge. The m px on either side of the edge line are taken from
+//!   it unchanged in every tile with that colour there, so two tiles whose shared edge has
+//!   the same colour meet exactly: across the edge, pixels are neighbours in one crop.
+//! - **Vertex patch.** Where four cells meet, the edge strips of four different edges
+//!   would meet too: one vertex crop, 2e × 2e, is cut into both ends of every strip by
+//!   minimum-error paths, so the m × m corner of every tile is the same piece of it and
+//!   every strip end agrees with every other.
+//! - **Interior.** Each tile has its own crop; it meets each of its four strips along an
+//!   8-connected minimum-error path in the band m ≤ d < e from the edge; where two strips
+//!   overlap in a corner, the strip of the nearer edge wins (the diagonal between them
+//!   is a seam like the others). Seam pixels are smoothed by a 3×3 mean (as seed 000's
+//!   stitching does), except within m px of an edge, which stays the strip's.
+//!
+//! Mip levels are each tile's 2 × 2 box means; edges stay exact down to the level whose
+//! texels span m pixels.
+
+use rand::{RngExt, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+use crate::analysis::cut::min_cut_vertical;
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+/// Random crops tried for each edge strip (the most typical is kept).
+const STRIP_CANDIDATES: usize = 16;
+
+/// Random crops tried for each tile's interior.
+const INTERIOR_CANDIDATES: usize = 4;
+
+/// Largest K: 8⁴ = 4096 tiles, the most a bank holds.
+pub const MAX_COLOURS: usize = 8;
+
+/// The geometry of a Wang tile set, validated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WangLayout {
+    /// Colours per edge direction, K.
+    pub colours: usize,
+    /// Tile side T in pixels (a power of two).
+    pub side: usize,
+    /// Half-width m of the band on each side of an edge copied unchanged from its strip.
+    pub edge: usize,
+    /// Width w of the cut band between a strip and the tile's interior (e = m + w).
+    pub band: usize,
+}
+
+impl WangLayout {
+    /// K colours, T × T tiles; `band` defaults to T/16 (≥ 2), m to T/32 (≥ 2).
+    pub fn new(colours: usize, side: usize, band: Option<usize>) -> Result<WangLayout> {
+        if !(1..=MAX_COLOURS).contains(&colours) {
+            return Err(Error::param(
+                "colours",
+                colours,
+                format!("1 to {MAX_COLOURS} colours per edge direction (K⁴ tiles)"),
+            ));
+        }
+        if !side.is_power_of_two() || !(16..=4096).contains(&side) {
+            return Err(Error::param(
+                "patch",
+                side,
+                "a Wang tile side that is a power of two from 16 to 4096 pixels",
+            ));
+        }
+        let edge = (side / 32).max(2);
+        let band = band.unwrap_or((side / 16).max(2));
+        if band == 0 || 2 * (edge + band) + 2 > side {
+            return Err(Error::param(
+                "overlap",
+                band,
+                format!(
+                    "a cut band of 1 to {} px for {side} px tiles (twice the band plus the {edge} px edge strips must leave an interior)",
+                    (side - 2) / 2 - edge
+                ),
+            ));
+        }
+        Ok(WangLayout {
+            colours,
+            side,
+            edge,
+            band,
+        })
+    }
+
+    /// e = m + w: how far a strip reaches into a tile.
+    pub fn reach(&self) -> usize {
+        self.edge + self.band
+    }
+
+    /// Number of tiles, K⁴.
+    pub fn tiles(&self) -> usize {
+        self.colours.pow(4)
+    }
+
+    /// Colours (W, E, S, N) of tile `t`.
+    pub fn colours_of(&self, t: usize) -> [usize; 4] {
+        let k = self.colours;
+        [t / (k * k * k), (t / (k * k)) % k, (t / k) % k, t % k]
+    }
+
+    /// Smallest exemplar side the layout needs: T + 2e (a strip is that long).
+    pub fn min_exemplar(&self) -> usize {
+        self.side + 2 * self.reach()
+    }
+}
+
+/// A quilted Wang tile set, with the samples it was made of (for inspection and tests).
+#[derive(Clone, Debug)]
+pub struct WangTiles {
+    /// The layout.
+    pub layout: WangLayout,
+    /// Values per pixel.
+    pub channels: usize,
+    /// K⁴ tiles of T × T × channels, indexed `((W·K + E)·K + S)·K + N`.
+    pub tiles: Vec<Vec<f32>>,
+    /// Per colour, the vertical-edge strip: 2e wide, T + 2e tall; column e is the first
+    /// one right of the edge, row e is tile row 0.
+    pub vertical: Vec<Vec<f32>>,
+    /// Per colour, the horizontal-edge strip: T + 2e wide, 2e tall; row e is the first
+    /// one below the edge, column e is tile column 0.
+    pub horizontal: Vec<Vec<f32>>,
+    /// Mean squared error per seam pixel: vertex cuts over all strips, then the interior
+    /// cuts over all tiles.
+    pub seam_costs: Vec<f64>,
+}
+
+/// A `w × h × c` crop of `ex` at (x0, y0).
+fn crop(ex: &Raster, x0: usize, y0: usize, w: usize, h: usize) -> Vec<f32> {
+    let c = ex.channels;
+    let mut out = Vec::with_capacity(w * h * c);
+    for y in 0..h {
+        let s = ((y0 + y) * ex.width + x0) * c;
+        out.extend_from_slice(&ex.data[s..s + w * c]);
+    }
+    out
+}
+
+/// Squared difference of two pixels, summed over channels.
+fn sq(a: &[f32], b: &[f32]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x as f64 - *y as f64).powi(2))
+        .sum()
+}
+
+/// Transposes a `w × h × c` image.
+fn transpose(img: &[f32], w: usize, h: usize, c: usize) -> Vec<f32> {
+    let mut out = vec![0.0; img.len()];
+    for y in 0..h {
+        for x in 0..w {
+            out[(x * h + y) * c..(x * h + y + 1) * c]
+                .copy_from_slice(&img[(y * w + x) * c..(y * w + x + 1) * c]);
+        }
+    }
+    out
+}
+
+/// Cuts the vertex patch `v` (2e × 2e) into both ends of a vertical strip (2e × (T + 2e))
+/// along horizontal minimum-error paths in the bands of tile rows [m, e) and [T − e, T − m);
+/// returns the summed path error and the number of path pixels.
+fn cut_vertex_into(strip: &mut [f32], v: &[f32], lay: &WangLayout, c: usize) -> (f64, usize) {
+    let (t, m, w, e) = (lay.side, lay.edge, lay.band, lay.reach());
+    let sw = 2 * e;
+    // Strip and vertex patch are both 2e wide.
+    let px = |x: usize, y: usize| (y * sw + x) * c;
+    // Strip row → vertex row, for the top (tile row 0 is strip row e) and bottom ends.
+    let (mut cost, mut n) = (0.0, 0);
+    for top in [true, false] {
+        let vrow = |sy: usize| if top { sy } else { sy - t };
+        // Band rows, and whether rows on the vertex side of the path are above it.
+        let band0 = if top { e + m } else { t };
+        // Pure vertex rows.
+        let pure = if top { 0..e + m } else { t + w..t + sw };
+        for sy in pure {
+            for sx in 0..sw {
+                let (a, b) = (px(sx, sy), px(sx, vrow(sy)));
+                strip[a..a + c].copy_from_slice(&v[b..b + c]);
+            }
+        }
+        let mut err = vec![0.0; sw * w];
+        for sx in 0..sw {
+            for r in 0..w {
+                let sy = band0 + r;
+                let (a, b) = (px(sx, sy), px(sx, vrow(sy)));
+                err[sx * w + r] = sq(&strip[a..a + c], &v[b..b + c]);
+            }
+        }
+        let path = min_cut_vertical(&err, w, sw);
+        let on_vertex = |sx: usize, r: usize| if top { r < path[sx] } else { r > path[sx] };
+        for sx in 0..sw {
+            cost += err[sx * w + path[sx]];
+            n += 1;
+            for r in 0..w {
+                if on_vertex(sx, r) {
+                    let sy = band0 + r;
+                    let (a, b) = (px(sx, sy), px(sx, vrow(sy)));
+                    strip[a..a + c].copy_from_slice(&v[b..b + c]);
+                }
+            }
+        }
+        // Seam smoothing inside the band only: pixels whose side differs from a
+        // 4-neighbour's within the band.
+        let mut seam = Vec::new();
+        for sx in 0..sw {
+            for r in 0..w {
+                let s = on_vertex(sx, r);
+                let differs = (sx > 0 && on_vertex(sx - 1, r) != s)
+                    || (sx + 1 < sw && on_vertex(sx + 1, r) != s)
+                    || (r > 0 && on_vertex(sx, r - 1) != s)
+                    || (r + 1 < w && on_vertex(sx, r + 1) != s);
+                if differs && sx > 0 && sx + 1 < sw {
+                    seam.push((sx, band0 + r));
+                }
+            }
+        }
+        mean_filter(strip, sw, t + sw, c, &seam);
+    }
+    (cost, n)
+}
+
+/// 3×3 means at the listed pixels (each window inside the image), all read first.
+fn mean_filter(img: &mut [f32], w: usize, h: usize, c: usize, at: &[(usize, usize)]) {
+    let means: Vec<f32> = at
+        .iter()
+        .flat_map(|&(x, y)| {
+            let img = &*img;
+            (0..c).map(move |k| {
+                let mut s = 0.0f64;
+                let mut n = 0.0;
+                for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                    for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                        s += img[(yy * w + xx) * c + k] as f64;
+                        n += 1.0;
+                    }
+                }
+                (s / n) as f32
+            })
+        })
+        .collect();
+    for (i, &(x, y)) in at.iter().enumerate() {
+        img[(y * w + x) * c..(y * w + x + 1) * c].copy_from_slice(&means[i * c..(i + 1) * c]);
+    }
+}
+
+/// Which sample a tile pixel shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Label {
+    Interior,
+    West,
+    East,
+    South,
+    North,
+}
+
+/// Quilts the K⁴ tiles of `layout` from crops of `ex` drawn with `seed`.
+pub fn wang_tiles(
+    ex: &Raster,
+    layout: WangLayout,
+    seed: u64,
+    source: &str,
+    progress: &mut dyn FnMut(&str),
+) -> Result<WangTiles> {
+    let lay = layout;
+    let (t, m, w, e) = (lay.side, lay.edge, lay.band, lay.reach());
+    let c = ex.channels;
+    let need = lay.min_exemplar();
+    if ex.width < need || ex.height < need {
+        return Err(Error::TooSmall {
+            what: source.to_string(),
+            message: format!(
+                "{}×{} pixels; Wang tiles of {t} px need an exemplar of at least {need}×{need} (the tile plus two {e} px strip ends): pass a smaller --patch",
+                ex.width, ex.height
+            ),
+        });
+    }
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut pick = |cw: usize, ch: usize| {
+        (
+            rng.random_range(0..=ex.width - cw),
+            rng.random_range(0..=ex.height - ch),
+        )
+    };
+    let sw = 2 * e;
+    let (vx, vy) = pick(sw, sw);
+    let vertex = crop(ex, vx, vy, sw, sw);
+    let vertex_t = transpose(&vertex, sw, sw, c);
+    let (mut vcost, mut vn) = (0.0, 0);
+    let mut vertical = Vec::with_capacity(lay.colours);
+    let mut horizontal = Vec::with_capacity(lay.colours);
+    // Mean squared step between horizontal (vertical) neighbours over the exemplar: an
+    // edge line is a seam of every tile, so each strip is the most typical of a few
+    // random crops by its step across the edge line (a strip from a rougher or smoother
+    // spot would make every cell border of its colour show).
+    let step = |dx: usize, dy: usize| {
+        let (mut s, mut n) = (0.0, 0usize);
+        for y in 0..ex.height - dy {
+            for x in 0..ex.width - dx {
+                let (a, b) = ((y * ex.width + x) * c, ((y + dy) * ex.width + x + dx) * c);
+                s += sq(&ex.data[a..a + c], &ex.data[b..b + c]);
+                n += 1;
+            }
+        }
+        s / n.max(1) as f64
+    };
+    let (along_x, along_y) = (step(1, 0), step(0, 1));
+    let mut typical = |cw: usize, ch: usize, vertical: bool| {
+        let target = if vertical { along_x } else { along_y };
+        let mut best: Option<(f64, Vec<f32>)> = None;
+        for _ in 0..STRIP_CANDIDATES {
+            let (x0, y0) = pick(cw, ch);
+            let img = crop(ex, x0, y0, cw, ch);
+            // The squared step across the edge line itself.
+            let mut s = 0.0;
+            let n = if vertical { ch } else { cw };
+            for k in 0..n {
+                let (a, b) = if vertical {
+                    ((k * cw + e - 1) * c, (k * cw + e) * c)
+                } else {
+                    (((e - 1) * cw + k) * c, (e * cw + k) * c)
+                };
+                s += sq(&img[a..a + c], &img[b..b + c]);
+            }
+            let off = ((s / n as f64).max(1e-300) / target.max(1e-300)).ln().abs();
+            if best.as_ref().is_none_or(|(o, _)| off < *o) {
+                best = Some((off, img));
+            }
+        }
+        best.map(|b| b.1).unwrap_or_default()
+    };
+    for _ in 0..lay.colours {
+        let mut s = typical(sw, t + sw, true);
+        let (a, b) = cut_vertex_into(&mut s, &vertex, &lay, c);
+        vertical.push(s);
+        (vcost, vn) = (vcost + a, vn + b);
+        // A horizontal strip is a vertical one in the transposed frame, with the
+        // transposed vertex.
+        let mut s = transpose(&typical(t + sw, sw, false), t + sw, sw, c);
+        let (a, b) = cut_vertex_into(&mut s, &vertex_t, &lay, c);
+        horizontal.push(transpose(&s, sw, t + sw, c));
+        (vcost, vn) = (vcost + a, vn + b);
+    }
+    progress(&format!(
+        "{} edge strips of {sw}×{} px and a {sw}×{sw} vertex patch, cut in (seam error {:.3e} per pixel)",
+        2 * lay.colours,
+        t + sw,
+        vcost / vn.max(1) as f64
+    ));
+
+    let (mut icost, mut in_) = (0.0, 0);
+    let mut tiles = Vec::with_capacity(lay.tiles());
+    for k in 0..lay.tiles() {
+        let [cw_, ce, cs, cn] = lay.colours_of(k);
+        // The interior too is the most typical of a few crops by its mean squared steps,
+        // so that cell borders and insides are alike on average.
+        let mut inner = Vec::new();
+        let mut best = f64::INFINITY;
+        for _ in 0..INTERIOR_CANDIDATES {
+            let (x0, y0) = pick(t, t);
+            let img = crop(ex, x0, y0, t, t);
+            let (mut gx, mut gy) = (0.0, 0.0);
+            for y in 0..t - 1 {
+                for x in 0..t - 1 {
+                    let p = (y * t + x) * c;
+                    gx += sq(&img[p..p + c], &img[p + c..p + 2 * c]);
+                    gy += sq(&img[p..p + c], &img[p + t * c..p + t * c + c]);
+                }
+            }
+            let n = ((t - 1) * (t - 1)) as f64;
+            let off = ((gx / n).max(1e-300) / along_x.max(1e-300)).ln().abs()
+                + ((gy / n).max(1e-300) / along_y.max(1e-300)).ln().abs();
+            if off < best {
+                (best, inner) = (off, img);
+            }
+        }
+        let (sv_w, sv_e, sh_s, sh_n) = (
+            &vertical[cw_],
+            &vertical[ce],
+            &horizontal[cs],
+            &horizontal[cn],
+        );
+        let hw = t + sw;
+        // Each source at tile pixel (x, y), where it reaches.
+        let west = |x: usize, y: usize| &sv_w[((e + y) * sw + e + x) * c..][..c];
+        let east = |x: usize, y: usize| &sv_e[((e + y) * sw + x + e - t) * c..][..c];
+        let south = |x: usize, y: usize| &sh_s[((e + y) * hw + e + x) * c..][..c];
+        let north = |x: usize, y: usize| &sh_n[((y + e - t) * hw + e + x) * c..][..c];
+        let inside = |x: usize, y: usize| &inner[(y * t + x) * c..][..c];
+        // Cuts: for each row (column), the path's offset into the band.
+        let cut = |err: &dyn Fn(usize, usize) -> f64| -> (Vec<usize>, f64) {
+            let mut m_ = vec![0.0; t * w];
+            for along in 0..t {
+                for r in 0..w {
+                    m_[along * w + r] = err(along, r);
+                }
+            }
+            let path = min_cut_vertical(&m_, w, t);
+            let cost = path.iter().enumerate().map(|(a, &r)| m_[a * w + r]).sum();
+            (path, cost)
+        };
+        let (cl, a) = cut(&|y, r| sq(west(m + r, y), inside(m + r, y)));
+        let (cr, b) = cut(&|y, r| sq(east(t - e + r, y), inside(t - e + r, y)));
+        let (ct, d) = cut(&|x, r| sq(south(x, m + r), inside(x, m + r)));
+        let (cb, f) = cut(&|x, r| sq(north(x, t - e + r), inside(x, t - e + r)));
+        icost += a + b + d + f;
+        in_ += 4 * t;
+        let label = |x: usize, y: usize| -> Label {
+            let in_w = x < m + cl[y];
+            let in_e = x >= t - e + cr[y];
+            let in_s = y < m + ct[x];
+            let in_n = y >= t - e + cb[x];
+            let vert = in_w || in_e;
+            let horiz = in_s || in_n;
+            let v = if in_w { Label::West } else { Label::East };
+            let h = if in_s { Label::South } else { Label::North };
+            match (vert, horiz) {
+                (false, false) => Label::Interior,
+                (true, false) => v,
+                (false, true) => h,
+                (true, true) => {
+                    let dx = if in_w { x } else { t - 1 - x };
+                    let dy = if in_s { y } else { t - 1 - y };
+                    if dx < m || (dy >= m && dx <= dy) {
+                        v
+                    } else {
+                        h
+                    }
+                }
+            }
+        };
+        let mut tile = vec![0.0f32; t * t * c];
+        let mut labels = vec![Label::Interior; t * t];
+        for y in 0..t {
+            for x in 0..t {
+                let l = label(x, y);
+                labels[y * t + x] = l;
+                let src = match l {
+                    Label::Interior => inside(x, y),
+                    Label::West => west(x, y),
+                    Label::East => east(x, y),
+                    Label::South => south(x, y),
+                    Label::North => north(x, y),
+                };
+                tile[(y * t + x) * c..(y * t + x + 1) * c].copy_from_slice(src);
+            }
+        }
+        let mut seam = Vec::new();
+        for y in m..t - m {
+            for x in m..t - m {
+                let l = labels[y * t + x];
+                if labels[y * t + x - 1] != l
+                    || labels[y * t + x + 1] != l
+                    || labels[(y - 1) * t + x] != l
+                    || labels[(y + 1) * t + x] != l
+                {
+                    seam.push((x, y));
+                }
+            }
+        }
+        mean_filter(&mut tile, t, t, c, &seam);
+        tiles.push(tile);
+    }
+    progress(&format!(
+        "{} tiles of {t}×{t} px quilted (interior seam error {:.3e} per pixel)",
+        lay.tiles(),
+        icost / in_.max(1) as f64
+    ));
+    Ok(WangTiles {
+        layout: lay,
+        channels: c,
+        tiles,
+        vertical,
+        horizontal,
+        seam_costs: vec![vcost / vn.max(1) as f64, icost / in_.max(1) as f64],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise(w: usize, h: usize, seed: u64) -> Raster {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        // Smoothed white noise: correlated like a rough surface.
+        let white: Vec<f32> = (0..w * h).map(|_| rng.random::<f32>()).collect();
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let mut s = 0.0;
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        s += white[((y + dy) % h) * w + (x + dx) % w];
+                    }
+                }
+                s / 9.0
+            })
+            .collect();
+        Raster::from_vec(w, h, 1, data).unwrap()
+    }
+
+    /// Acceptance (issue 7): every pair of tiles whose shared edge has the same colour
+    /// meets exactly — the m columns (rows) on each side of the edge are the strip of
+    /// that colour, unchanged, so across the edge the pixels are neighbours in one crop.
+    /// Corners are the vertex patch in every tile.
+    #[test]
+    fn tiles_sharing_an_edge_colour_meet_exactly() {
+        let lay = WangLayout::new(2, 64, None).unwrap();
+        let ex = noise(100, 90, 4);
+        let wt = wang_tiles(&ex, lay, 9, "noise", &mut |_| {}).unwrap();
+        let (t, m, e) = (lay.side, lay.edge, lay.reach());
+        let sw = 2 * e;
+        assert_eq!(wt.tiles.len(), 16);
+        let px = |tile: &[f32], x: usize, y: usize| tile[y * t + x];
+        let mut pairs = 0;
+        for (ia, a) in wt.tiles.iter().enumerate() {
+            for (ib, b) in wt.tiles.iter().enumerate() {
+                let (ca, cb) = (lay.colours_of(ia), lay.colours_of(ib));
+                // a's east edge against b's west edge.
+                if ca[1] == cb[0] {
+                    pairs += 1;
+                    let s = &wt.vertical[ca[1]];
+                    for y in 0..t {
+                        for d in 0..m {
+                            assert_eq!(px(a, t - 1 - d, y), s[(e + y) * sw + e - 1 - d]);
+                            assert_eq!(px(b, d, y), s[(e + y) * sw + e + d]);
+                        }
+                    }
+                }
+                // a's north edge against b's south edge.
+                if ca[3] == cb[2] {
+                    let s = &wt.horizontal[ca[3]];
+                    for x in 0..t {
+                        for d in 0..m {
+                            assert_eq!(px(a, x, t - 1 - d), s[(e - 1 - d) * (t + sw) + e + x]);
+                            assert_eq!(px(b, x, d), s[(e + d) * (t + sw) + e + x]);
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(pairs, 16 * 8);
+        // The strips' ends agree with each other where they overlap: every corner.
+        let first = &wt.tiles[0];
+        for tile in &wt.tiles {
+            for y in 0..m {
+                for x in 0..m {
+                    assert_eq!(px(tile, x, y), px(first, x, y));
+                    assert_eq!(
+                        px(tile, t - 1 - x, t - 1 - y),
+                        px(first, t - 1 - x, t - 1 - y)
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bad_layouts_name_what_is_wrong() {
+        let e = WangLayout::new(0, 64, None).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "invalid colours = 0: expected 1 to 8 colours per edge direction (K⁴ tiles)"
+        );
+        assert!(WangLayout::new(2, 48, None).is_err());
+        assert!(WangLayout::new(2, 64, Some(40)).is_err());
+        let lay = WangLayout::new(2, 64, None).unwrap();
+        let e = wang_tiles(&noise(70, 70, 1), lay, 0, "small", &mut |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("at least 76×76"), "{e}");
+    }
+}

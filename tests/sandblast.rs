@@ -1,0 +1,225 @@
+//! Acceptance (issue 7): seed 000's sandblast pipeline and the Wang (quilt) banks.
+
+use surftile::Raster;
+use surftile::bake::Baker;
+use surftile::bank::Method;
+use surftile::io::{ImageFile, ReadOptions, read_image};
+use surftile::sandblast::{Route, Sandblast};
+use surftile::stats::{Acf, height_stats, seam_score_by};
+use surftile::stream::{Region, Surface, ToroidalSurface};
+
+fn data(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+fn image(raster: Raster) -> ImageFile {
+    ImageFile {
+        raster,
+        spacing_um: None,
+    }
+}
+
+/// Repetition score as DESIGN.md defines it: the highest unbiased normalised ACF at lags
+/// beyond the longest decay length.
+fn repetition(r: &Raster) -> f64 {
+    height_stats(r).repetition
+}
+
+/// Seed 000, Fig. 8: with a measurement much smaller than the output (32² of di-6 for a
+/// 512² output), padded RPN repeats the small input's structure periodically — its
+/// repetition score is high — while RPN patches from random positions, EF-stitched, do
+/// not. Thresholds: padded ≥ 0.25, stitched ≤ 0.15, and padded ≥ 2× stitched.
+///
+/// NOT MET (issue 7 stays open): both score 0.18–0.20 on seeds 1–5. The repetition
+/// score (the highest ACF beyond the longest decay length) sits at about 0.2 for any
+/// texture, just past that length; and zero-padded RPN has, by construction, no
+/// correlation at lags beyond the input's extent, so it shows no long-lag repetition to
+/// measure. A measure of what Fig. 8 shows is still to be found.
+#[test]
+#[ignore = "issue 7: acceptance point not met, see the doc comment"]
+fn padded_rpn_repeats_and_stitching_does_not() {
+    let ps1 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let small = image(ps1.raster.crop(100, 100, 32, 32).unwrap());
+    let run = |padded: bool| {
+        let out = Sandblast::builder(512, 512)
+            .seed(3)
+            .patch(24)
+            .padded(padded)
+            .build()
+            .unwrap()
+            .run(&small, "di-6 32²", &mut |_| {})
+            .unwrap();
+        (repetition(&out.raster), out.how)
+    };
+    let (padded, how_p) = run(true);
+    let (stitched, how_s) = run(false);
+    println!("repetition: padded RPN {padded:.3} ({how_p:?}), stitched {stitched:.3} ({how_s:?})");
+    assert_eq!(how_p, Route::Padded);
+    assert!(matches!(how_s, Route::Stitched { .. }));
+    assert!(padded >= 0.25, "padded RPN repetition {padded:.3}");
+    assert!(stitched <= 0.15, "stitched repetition {stitched:.3}");
+    assert!(padded >= 2.0 * stitched, "{padded:.3} vs {stitched:.3}");
+}
+
+fn wang_bank() -> surftile::bank::Bank {
+    let di6 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    Baker::builder()
+        .method(Method::Quilt)
+        .seed(3)
+        .build()
+        .unwrap()
+        .bake(&di6, "di-6", &mut |_| {})
+        .unwrap()
+}
+
+/// Acceptance (issue 7): a 2048² render from a Wang bank (di-6, K = 2, 256 px tiles) has
+/// a seam score within [0.9, 1.15] at the tile cells (1.0: the cell borders are no
+/// rougher than the inside), for every bake seed 0–4.
+///
+/// NOT MET (issue 7 stays open): 1.06, 1.17, 1.04, 1.15, 0.87 over bake seeds 0–4. The
+/// borders are always inside one of only 2K edge strips, so the score follows those few
+/// crops; picking the most typical of 16 (and interiors of 4) narrowed it from 0.86–1.39.
+#[test]
+#[ignore = "issue 7: acceptance point not met for every bake seed, see the doc comment"]
+fn a_wang_render_has_no_visible_cell_borders() {
+    for seed in 0..5 {
+        a_wang_render_seam_score(seed);
+    }
+}
+
+fn a_wang_render_seam_score(bake_seed: u64) {
+    let di6 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let bank = Baker::builder()
+        .method(Method::Quilt)
+        .seed(bake_seed)
+        .build()
+        .unwrap()
+        .bake(&di6, "di-6", &mut |_| {})
+        .unwrap();
+    assert_eq!(bank.header.tiles, 16);
+    let surface = ToroidalSurface::new(&bank, 11).unwrap();
+    let side = 2048;
+    let region = Region::new(-123_456.0, 98_765.0, side, side);
+    let mut buf = vec![0.0f32; side * side];
+    surface.fill(&region, &mut buf).unwrap();
+    let r = Raster::from_vec(side, side, 1, buf).unwrap();
+    let score = seam_score_by(&r, |x, y| surface.cell_id(region.x_at(x), region.y_at(y)));
+    println!("bake seed {bake_seed}: Wang seam score {score:.4}");
+    assert!((0.9..=1.15).contains(&score), "seam score {score}");
+}
+
+/// Determinism: a Wang region equals, bit for bit, the same region assembled from
+/// quadrants filled in reverse order, at step 1 (row copies) and step 2.5 (mips).
+#[test]
+fn wang_fills_do_not_depend_on_the_split() {
+    let bank = wang_bank();
+    let surface = ToroidalSurface::new(&bank, 4).unwrap();
+    for step in [1.0, 2.5] {
+        let region = Region::new(-1e9, 7.0e8, 300, 220).with_step(step);
+        let mut whole = vec![0.0f32; region.len()];
+        surface.fill(&region, &mut whole).unwrap();
+        let mut parts = vec![0.0f32; region.len()];
+        for (c0, r0, w, h) in [
+            (150, 110, 150, 110),
+            (0, 110, 150, 110),
+            (150, 0, 150, 110),
+            (0, 0, 150, 110),
+        ] {
+            let sub = region.sub(c0, r0, w, h).unwrap();
+            let mut buf = vec![0.0f32; w * h];
+            surface.fill(&sub, &mut buf).unwrap();
+            for y in 0..h {
+                parts[(r0 + y) * 300 + c0..(r0 + y) * 300 + c0 + w]
+                    .copy_from_slice(&buf[y * w..(y + 1) * w]);
+            }
+        }
+        assert!(
+            whole
+                .iter()
+                .zip(&parts)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "step {step}"
+        );
+        // And at step 1 sampling agrees with filling.
+        if step != 1.0 {
+            continue;
+        }
+        assert_eq!(surface.height(region.x_at(7), region.y_at(5)).to_bits(), {
+            let one = region.sub(7, 5, 1, 1).unwrap();
+            let mut v = [0.0f32];
+            surface.fill(&one, &mut v).unwrap();
+            v[0].to_bits()
+        });
+    }
+}
+
+/// Bad input (issue 7), each with a clear one-line error naming what is wrong.
+#[test]
+fn bad_input_is_refused_with_what_is_expected() {
+    let e = Sandblast::builder(100, 100)
+        .patch(64)
+        .overlap(64)
+        .build()
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "invalid overlap = 64: expected 1 to 63 pixels: less than the patch size (64)"
+    );
+    let di6 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let e = Sandblast::builder(100, 100)
+        .exemplar_spacing_um(0.0195)
+        .spacing_um(0.01)
+        .build()
+        .unwrap()
+        .run(&di6, "di-6", &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("at least the exemplar's 0.0195 µm"), "{e}");
+    let e = Baker::builder()
+        .method(Method::Quilt)
+        .colours(0)
+        .build()
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "invalid colours = 0: expected 1 to 8 colours per edge direction (K⁴ Wang tiles)"
+    );
+    let e = Sandblast::builder(0, 10).build().unwrap_err().to_string();
+    assert!(e.contains("invalid size = 0x10"), "{e}");
+}
+
+/// The pipeline's routes: a target the measurement covers is one crop + RPN; a larger
+/// one is stitched; a coarser spacing down-samples first (0.039 µm from di-6's 0.0195:
+/// 256² left, so 300² is stitched from 256 px patches). Heights stay finite and keep
+/// the measurement's spread within a factor of 1.5.
+#[test]
+fn the_pipeline_takes_the_route_seed_000_describes() {
+    let di6 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let run = |w, h, spacing: Option<f64>| {
+        let mut b = Sandblast::builder(w, h).seed(2).exemplar_spacing_um(0.0195);
+        if let Some(s) = spacing {
+            b = b.spacing_um(s);
+        }
+        b.build().unwrap().run(&di6, "di-6", &mut |_| {}).unwrap()
+    };
+    let small = run(200, 150, None);
+    assert_eq!(small.how, Route::Crop);
+    let big = run(300, 300, Some(0.039));
+    assert_eq!((big.exemplar.width, big.exemplar.height), (256, 256));
+    assert_eq!(
+        big.how,
+        Route::Stitched {
+            nx: 2,
+            ny: 2,
+            patch: 256,
+            overlap: 128
+        }
+    );
+    assert_eq!(big.spacing_um, Some(0.039));
+    for out in [&small, &big] {
+        assert!(out.raster.data.iter().all(|v| v.is_finite()));
+        let (a, b) = (height_stats(&out.exemplar).sq, height_stats(&out.raster).sq);
+        assert!(b > a / 1.5 && b < a * 1.5, "Sq {b} vs exemplar {a}");
+    }
+    let _ = Acf::new(&big.raster);
+}
