@@ -28,6 +28,7 @@ use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 use crate::analysis::cut::min_cut_vertical;
+use crate::analysis::stitch::mean_filter_at as mean_filter;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
@@ -224,30 +225,6 @@ fn cut_vertex_into(strip: &mut [f32], v: &[f32], lay: &WangLayout, c: usize) -> 
         mean_filter(strip, sw, t + sw, c, &seam);
     }
     (cost, n)
-}
-
-/// 3×3 means at the listed pixels (each window inside the image), all read first.
-fn mean_filter(img: &mut [f32], w: usize, h: usize, c: usize, at: &[(usize, usize)]) {
-    let means: Vec<f32> = at
-        .iter()
-        .flat_map(|&(x, y)| {
-            let img = &*img;
-            (0..c).map(move |k| {
-                let mut s = 0.0f64;
-                let mut n = 0.0;
-                for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
-                    for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
-                        s += img[(yy * w + xx) * c + k] as f64;
-                        n += 1.0;
-                    }
-                }
-                (s / n) as f32
-            })
-        })
-        .collect();
-    for (i, &(x, y)) in at.iter().enumerate() {
-        img[(y * w + x) * c..(y * w + x + 1) * c].copy_from_slice(&means[i * c..(i + 1) * c]);
-    }
 }
 
 /// Which sample a tile pixel shows.

@@ -254,7 +254,13 @@ fn vertical_joining(err: &[f64], o: usize, p: usize, h: &[usize]) -> Vec<usize> 
 
 /// Replaces each listed pixel by the 3×3 mean of the image around it (clipped at the
 /// image border), all read before any is written.
-fn mean_filter_at(img: &mut [f32], w: usize, h: usize, c: usize, pixels: &[(usize, usize)]) {
+pub(crate) fn mean_filter_at(
+    img: &mut [f32],
+    w: usize,
+    h: usize,
+    c: usize,
+    pixels: &[(usize, usize)],
+) {
     let means: Vec<f32> = pixels
         .iter()
         .flat_map(|&(x, y)| {
