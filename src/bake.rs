@@ -65,6 +65,29 @@ pub enum Taper {
     Periodic,
 }
 
+impl Taper {
+    /// The `pw × ph` crop at (x0, y0) of each row-major plane `w` wide, made periodic.
+    pub(crate) fn crops(
+        self,
+        planes: &[Vec<f64>],
+        w: usize,
+        [x0, y0, pw, ph]: [usize; 4],
+    ) -> Vec<Vec<f64>> {
+        planes
+            .iter()
+            .map(|plane| {
+                let crop: Vec<f64> = (0..ph)
+                    .flat_map(|y| plane[(y0 + y) * w + x0..(y0 + y) * w + x0 + pw].to_vec())
+                    .collect();
+                match self {
+                    Taper::Hann => hann_taper(&crop, pw, ph),
+                    Taper::Periodic => periodic_smooth(&crop, pw, ph).0,
+                }
+            })
+            .collect()
+    }
+}
+
 /// Validated bake parameters. Make one with [`Baker::builder`].
 #[derive(Clone, Debug)]
 pub struct Baker {
@@ -408,18 +431,7 @@ impl Baker {
         let mut level0 = vec![0.0f32; self.bank_size * pw * ph * c];
         for k in 0..self.bank_size {
             let (x0, y0) = (rng.random_range(0..=w - pw), rng.random_range(0..=h - ph));
-            let crops: Vec<Vec<f64>> = gauss_planes
-                .iter()
-                .map(|plane| {
-                    let crop: Vec<f64> = (0..ph)
-                        .flat_map(|y| plane[(y0 + y) * w + x0..(y0 + y) * w + x0 + pw].to_vec())
-                        .collect();
-                    match self.taper {
-                        Taper::Hann => hann_taper(&crop, pw, ph),
-                        Taper::Periodic => periodic_smooth(&crop, pw, ph).0,
-                    }
-                })
-                .collect();
+            let crops = self.taper.crops(&gauss_planes, w, [x0, y0, pw, ph]);
             let patch = match self.method {
                 Method::Adsn => asymptotic_spot_noise(&crops, pw, ph, &mut rng),
                 // The roller returned at the top of `bake`.

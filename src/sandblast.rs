@@ -23,10 +23,8 @@ use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 use crate::analysis::gauss::{gaussianize, normal_cdf, quantile};
-use crate::analysis::periodic::periodic_smooth;
 use crate::analysis::rpn::random_phase_noise;
 use crate::analysis::stitch::{StitchParams, stitch};
-use crate::analysis::taper::hann_taper;
 use crate::bake::{Baker, Taper};
 use crate::error::{Error, Result};
 use crate::hash::hash_cell;
@@ -259,19 +257,8 @@ impl Sandblast {
             })
             .unzip();
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(self.seed);
-        let crop_of = |x0: usize, y0: usize, pw: usize, ph: usize| -> Vec<Vec<f64>> {
-            gauss
-                .iter()
-                .map(|plane| {
-                    let crop: Vec<f64> = (0..ph)
-                        .flat_map(|y| plane[(y0 + y) * ew + x0..(y0 + y) * ew + x0 + pw].to_vec())
-                        .collect();
-                    match self.taper {
-                        Taper::Hann => hann_taper(&crop, pw, ph),
-                        Taper::Periodic => periodic_smooth(&crop, pw, ph).0,
-                    }
-                })
-                .collect()
+        let crop_of = |x0: usize, y0: usize, pw: usize, ph: usize| {
+            self.taper.crops(&gauss, ew, [x0, y0, pw, ph])
         };
         let (planes, how) = if ew >= w && eh >= h {
             let (x0, y0) = (rng.random_range(0..=ew - w), rng.random_range(0..=eh - h));
@@ -447,14 +434,11 @@ fn rpn_patches(
 
 /// Planes (one per channel) into an interleaved raster.
 fn interleave(planes: &[Vec<f64>], w: usize, h: usize) -> Result<Raster> {
-    let c = planes.len();
-    let mut data = vec![0.0f32; w * h * c];
+    let mut r = Raster::zeros(w, h, planes.len());
     for (ch, plane) in planes.iter().enumerate() {
-        for (i, &v) in plane.iter().enumerate() {
-            data[i * c + ch] = v as f32;
-        }
+        r.set_channel_f64(ch, plane);
     }
-    Raster::from_vec(w, h, c, data)
+    Ok(r)
 }
 
 /// T⁻¹: each channel standardised by its own mean and deviation, then mapped through the

@@ -133,17 +133,6 @@ pub struct WangTiles {
     pub seam_costs: Vec<f64>,
 }
 
-/// A `w × h × c` crop of `ex` at (x0, y0).
-fn crop(ex: &Raster, x0: usize, y0: usize, w: usize, h: usize) -> Vec<f32> {
-    let c = ex.channels;
-    let mut out = Vec::with_capacity(w * h * c);
-    for y in 0..h {
-        let s = ((y0 + y) * ex.width + x0) * c;
-        out.extend_from_slice(&ex.data[s..s + w * c]);
-    }
-    out
-}
-
 /// Squared difference of two pixels, summed over channels.
 fn sq(a: &[f32], b: &[f32]) -> f64 {
     a.iter()
@@ -267,7 +256,7 @@ pub fn wang_tiles(
     };
     let sw = 2 * e;
     let (vx, vy) = pick(sw, sw);
-    let vertex = crop(ex, vx, vy, sw, sw);
+    let vertex = ex.crop(vx, vy, sw, sw)?.data;
     let vertex_t = transpose(&vertex, sw, sw, c);
     let (mut vcost, mut vn) = (0.0, 0);
     let mut vertical = Vec::with_capacity(lay.colours);
@@ -293,7 +282,7 @@ pub fn wang_tiles(
         let mut best: Option<(f64, Vec<f32>)> = None;
         for _ in 0..STRIP_CANDIDATES {
             let (x0, y0) = pick(cw, ch);
-            let img = crop(ex, x0, y0, cw, ch);
+            let img = ex.crop(x0, y0, cw, ch)?.data;
             // The squared step across the edge line itself.
             let mut s = 0.0;
             let n = if vertical { ch } else { cw };
@@ -310,16 +299,16 @@ pub fn wang_tiles(
                 best = Some((off, img));
             }
         }
-        best.map(|b| b.1).unwrap_or_default()
+        Ok::<_, Error>(best.map(|b| b.1).unwrap_or_default())
     };
     for _ in 0..lay.colours {
-        let mut s = typical(sw, t + sw, true);
+        let mut s = typical(sw, t + sw, true)?;
         let (a, b) = cut_vertex_into(&mut s, &vertex, &lay, c);
         vertical.push(s);
         (vcost, vn) = (vcost + a, vn + b);
         // A horizontal strip is a vertical one in the transposed frame, with the
         // transposed vertex.
-        let mut s = transpose(&typical(t + sw, sw, false), t + sw, sw, c);
+        let mut s = transpose(&typical(t + sw, sw, false)?, t + sw, sw, c);
         let (a, b) = cut_vertex_into(&mut s, &vertex_t, &lay, c);
         horizontal.push(transpose(&s, sw, t + sw, c));
         (vcost, vn) = (vcost + a, vn + b);
@@ -341,7 +330,7 @@ pub fn wang_tiles(
         let mut best = f64::INFINITY;
         for _ in 0..INTERIOR_CANDIDATES {
             let (x0, y0) = pick(t, t);
-            let img = crop(ex, x0, y0, t, t);
+            let img = ex.crop(x0, y0, t, t)?.data;
             let (mut gx, mut gy) = (0.0, 0.0);
             for y in 0..t - 1 {
                 for x in 0..t - 1 {
