@@ -33,10 +33,10 @@ use crate::error::{Error, Result};
 use crate::raster::Raster;
 
 /// Random crops tried for each edge strip (the most typical is kept).
-const STRIP_CANDIDATES: usize = 16;
+const STRIP_CANDIDATES: usize = 64;
 
 /// Random crops tried for each tile's interior.
-const INTERIOR_CANDIDATES: usize = 4;
+const INTERIOR_CANDIDATES: usize = 16;
 
 /// Largest K: 8⁴ = 4096 tiles, the most a bank holds.
 pub const MAX_COLOURS: usize = 8;
@@ -255,16 +255,7 @@ pub fn wang_tiles(
         )
     };
     let sw = 2 * e;
-    let (vx, vy) = pick(sw, sw);
-    let vertex = ex.crop(vx, vy, sw, sw)?.data;
-    let vertex_t = transpose(&vertex, sw, sw, c);
-    let (mut vcost, mut vn) = (0.0, 0);
-    let mut vertical = Vec::with_capacity(lay.colours);
-    let mut horizontal = Vec::with_capacity(lay.colours);
-    // Mean squared step between horizontal (vertical) neighbours over the exemplar: an
-    // edge line is a seam of every tile, so each strip is the most typical of a few
-    // random crops by its step across the edge line (a strip from a rougher or smoother
-    // spot would make every cell border of its colour show).
+    // Mean squared step between horizontal (vertical) neighbours over the exemplar.
     let step = |dx: usize, dy: usize| {
         let (mut s, mut n) = (0.0, 0usize);
         for y in 0..ex.height - dy {
@@ -277,39 +268,70 @@ pub fn wang_tiles(
         s / n.max(1) as f64
     };
     let (along_x, along_y) = (step(1, 0), step(0, 1));
-    let mut typical = |cw: usize, ch: usize, vertical: bool| {
-        let target = if vertical { along_x } else { along_y };
-        let mut best: Option<(f64, Vec<f32>)> = None;
+    // The squared step between columns e − 1 and e of a strip-shaped image (2e wide, in
+    // the vertical frame) over `rows`, relative to `target`, as |ln ratio|.
+    let off_across = |img: &[f32], rows: std::ops::Range<usize>, target: f64| {
+        let n = rows.len();
+        let s: f64 = rows
+            .map(|k| {
+                let (a, b) = ((k * sw + e - 1) * c, (k * sw + e) * c);
+                sq(&img[a..a + c], &img[b..b + c])
+            })
+            .sum();
+        ((s / n.max(1) as f64).max(1e-300) / target.max(1e-300))
+            .ln()
+            .abs()
+    };
+    // The vertex patch ends every strip, so it too is the most typical of a few crops,
+    // by its steps across both centre lines.
+    let mut vertex = Vec::new();
+    let mut best = f64::INFINITY;
+    for _ in 0..STRIP_CANDIDATES {
+        let (vx, vy) = pick(sw, sw);
+        let v = ex.crop(vx, vy, sw, sw)?.data;
+        let off =
+            off_across(&v, 0..sw, along_x) + off_across(&transpose(&v, sw, sw, c), 0..sw, along_y);
+        if off < best {
+            (best, vertex) = (off, v);
+        }
+    }
+    let vertex_t = transpose(&vertex, sw, sw, c);
+    let (mut vcost, mut vn) = (0.0, 0);
+    let mut vertical = Vec::with_capacity(lay.colours);
+    let mut horizontal = Vec::with_capacity(lay.colours);
+    // An edge line is a seam of every tile with that colour, so each strip is the most
+    // typical of a few random crops, with the vertex patch cut into its ends, by the mean
+    // squared step across the edge line along the tile's T px (a strip from a rougher or
+    // smoother spot would make every cell border of its colour show). Horizontal strips
+    // are vertical ones in the transposed frame, with the transposed vertex.
+    let mut typical = |vertical: bool| {
+        let (target, v) = if vertical {
+            (along_x, &vertex)
+        } else {
+            (along_y, &vertex_t)
+        };
+        let mut best: Option<(f64, Vec<f32>, (f64, usize))> = None;
         for _ in 0..STRIP_CANDIDATES {
-            let (x0, y0) = pick(cw, ch);
-            let img = ex.crop(x0, y0, cw, ch)?.data;
-            // The squared step across the edge line itself.
-            let mut s = 0.0;
-            let n = if vertical { ch } else { cw };
-            for k in 0..n {
-                let (a, b) = if vertical {
-                    ((k * cw + e - 1) * c, (k * cw + e) * c)
-                } else {
-                    (((e - 1) * cw + k) * c, (e * cw + k) * c)
-                };
-                s += sq(&img[a..a + c], &img[b..b + c]);
-            }
-            let off = ((s / n as f64).max(1e-300) / target.max(1e-300)).ln().abs();
-            if best.as_ref().is_none_or(|(o, _)| off < *o) {
-                best = Some((off, img));
+            let mut img = if vertical {
+                let (x0, y0) = pick(sw, t + sw);
+                ex.crop(x0, y0, sw, t + sw)?.data
+            } else {
+                let (x0, y0) = pick(t + sw, sw);
+                transpose(&ex.crop(x0, y0, t + sw, sw)?.data, t + sw, sw, c)
+            };
+            let cost = cut_vertex_into(&mut img, v, &lay, c);
+            let off = off_across(&img, e..e + t, target);
+            if best.as_ref().is_none_or(|(o, _, _)| off < *o) {
+                best = Some((off, img, cost));
             }
         }
-        Ok::<_, Error>(best.map(|b| b.1).unwrap_or_default())
+        Ok::<_, Error>(best.map(|b| (b.1, b.2)).unwrap_or_default())
     };
     for _ in 0..lay.colours {
-        let mut s = typical(sw, t + sw, true)?;
-        let (a, b) = cut_vertex_into(&mut s, &vertex, &lay, c);
+        let (s, (a, b)) = typical(true)?;
         vertical.push(s);
         (vcost, vn) = (vcost + a, vn + b);
-        // A horizontal strip is a vertical one in the transposed frame, with the
-        // transposed vertex.
-        let mut s = transpose(&typical(t + sw, sw, false)?, t + sw, sw, c);
-        let (a, b) = cut_vertex_into(&mut s, &vertex_t, &lay, c);
+        let (s, (a, b)) = typical(false)?;
         horizontal.push(transpose(&s, sw, t + sw, c));
         (vcost, vn) = (vcost + a, vn + b);
     }
@@ -324,28 +346,6 @@ pub fn wang_tiles(
     let mut tiles = Vec::with_capacity(lay.tiles());
     for k in 0..lay.tiles() {
         let [cw_, ce, cs, cn] = lay.colours_of(k);
-        // The interior too is the most typical of a few crops by its mean squared steps,
-        // so that cell borders and insides are alike on average.
-        let mut inner = Vec::new();
-        let mut best = f64::INFINITY;
-        for _ in 0..INTERIOR_CANDIDATES {
-            let (x0, y0) = pick(t, t);
-            let img = ex.crop(x0, y0, t, t)?.data;
-            let (mut gx, mut gy) = (0.0, 0.0);
-            for y in 0..t - 1 {
-                for x in 0..t - 1 {
-                    let p = (y * t + x) * c;
-                    gx += sq(&img[p..p + c], &img[p + c..p + 2 * c]);
-                    gy += sq(&img[p..p + c], &img[p + t * c..p + t * c + c]);
-                }
-            }
-            let n = ((t - 1) * (t - 1)) as f64;
-            let off = ((gx / n).max(1e-300) / along_x.max(1e-300)).ln().abs()
-                + ((gy / n).max(1e-300) / along_y.max(1e-300)).ln().abs();
-            if off < best {
-                (best, inner) = (off, img);
-            }
-        }
         let (sv_w, sv_e, sh_s, sh_n) = (
             &vertical[cw_],
             &vertical[ce],
@@ -353,13 +353,12 @@ pub fn wang_tiles(
             &horizontal[cn],
         );
         let hw = t + sw;
-        // Each source at tile pixel (x, y), where it reaches.
+        // Each strip at tile pixel (x, y), where it reaches.
         let west = |x: usize, y: usize| &sv_w[((e + y) * sw + e + x) * c..][..c];
         let east = |x: usize, y: usize| &sv_e[((e + y) * sw + x + e - t) * c..][..c];
         let south = |x: usize, y: usize| &sh_s[((e + y) * hw + e + x) * c..][..c];
         let north = |x: usize, y: usize| &sh_n[((y + e - t) * hw + e + x) * c..][..c];
-        let inside = |x: usize, y: usize| &inner[(y * t + x) * c..][..c];
-        // Cuts: for each row (column), the path's offset into the band.
+        // A cut: for each row (column), the path's offset into the band, and its error.
         let cut = |err: &dyn Fn(usize, usize) -> f64| -> (Vec<usize>, f64) {
             let mut m_ = vec![0.0; t * w];
             for along in 0..t {
@@ -371,11 +370,28 @@ pub fn wang_tiles(
             let cost = path.iter().enumerate().map(|(a, &r)| m_[a * w + r]).sum();
             (path, cost)
         };
-        let (cl, a) = cut(&|y, r| sq(west(m + r, y), inside(m + r, y)));
-        let (cr, b) = cut(&|y, r| sq(east(t - e + r, y), inside(t - e + r, y)));
-        let (ct, d) = cut(&|x, r| sq(south(x, m + r), inside(x, m + r)));
-        let (cb, f) = cut(&|x, r| sq(north(x, t - e + r), inside(x, t - e + r)));
-        icost += a + b + d + f;
+        // The interior is the crop, of a few, whose four cuts into the strips cost least
+        // (as image quilting picks its patches): seams inside the cells then show as
+        // little as the cell borders, which are the strips' own texture.
+        let mut best: Option<(f64, Vec<f32>, [Vec<usize>; 4])> = None;
+        for _ in 0..INTERIOR_CANDIDATES {
+            let (x0, y0) = pick(t, t);
+            let img = ex.crop(x0, y0, t, t)?.data;
+            let inside = |x: usize, y: usize| &img[(y * t + x) * c..][..c];
+            let (cl, a) = cut(&|y, r| sq(west(m + r, y), inside(m + r, y)));
+            let (cr, b) = cut(&|y, r| sq(east(t - e + r, y), inside(t - e + r, y)));
+            let (ct, d) = cut(&|x, r| sq(south(x, m + r), inside(x, m + r)));
+            let (cb, f) = cut(&|x, r| sq(north(x, t - e + r), inside(x, t - e + r)));
+            let cost = a + b + d + f;
+            if best.as_ref().is_none_or(|(o, _, _)| cost < *o) {
+                best = Some((cost, img, [cl, cr, ct, cb]));
+            }
+        }
+        let Some((cost, inner, [cl, cr, ct, cb])) = best else {
+            unreachable!("INTERIOR_CANDIDATES > 0")
+        };
+        let inside = |x: usize, y: usize| &inner[(y * t + x) * c..][..c];
+        icost += cost;
         in_ += 4 * t;
         let label = |x: usize, y: usize| -> Label {
             let in_w = x < m + cl[y];

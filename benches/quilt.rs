@@ -1,0 +1,80 @@
+//! Issue 7's speed targets, each next to its baseline in the same run:
+//! - `fill` of 4096² at step 1 from a Wang (quilt) bank — integer origin, so row copies
+//!   from the tile whose four edge colours match — reaches ≥ 40% of the throughput of a
+//!   memcpy of the same bytes;
+//! - a 2048² sandblast output from the bundled 512² di-6 (seed 000's route for a target
+//!   larger than the measurement: RPN patches from random positions, EF-stitched) takes
+//!   ≤ 1.5 s, next to the padded-RPN variant of the same size (one 2048² RPN), the
+//!   cheapest way the paper names to reach that size.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use surftile::bake::Baker;
+use surftile::bank::Method;
+use surftile::io::{ReadOptions, read_image};
+use surftile::sandblast::{Route, Sandblast};
+use surftile::stream::{Region, Surface, ToroidalSurface};
+
+fn bench(c: &mut Criterion) {
+    let ex = read_image(&common::repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let bank = Baker::builder()
+        .method(Method::Quilt)
+        .seed(3)
+        .build()
+        .unwrap()
+        .bake(&ex, "di-6", &mut |_| {})
+        .unwrap();
+    assert_eq!(bank.header.wang_colours, Some(2));
+    let surface = ToroidalSurface::new(&bank, 5).unwrap();
+
+    let mut g = c.benchmark_group("quilt");
+    g.sample_size(20).measurement_time(Duration::from_secs(8));
+    let side = 4096usize;
+    let n = side * side;
+    g.throughput(Throughput::Bytes((n * 4) as u64));
+    let region = Region::new(-123_456.0, 987_654.0, side, side);
+    let mut out = vec![0.0f32; n];
+    g.bench_function("wang_fill_step1_4096", |b| {
+        b.iter(|| {
+            surface.fill(black_box(&region), &mut out).unwrap();
+            black_box(out[n / 2])
+        })
+    });
+    let src = vec![1.0f32; n];
+    let mut dst = vec![0.0f32; n];
+    g.bench_function("baseline_memcpy_4096", |b| {
+        b.iter(|| {
+            dst.copy_from_slice(black_box(&src));
+            black_box(dst[n / 2])
+        })
+    });
+    g.finish();
+
+    let mut g = c.benchmark_group("sandblast");
+    g.sample_size(10).measurement_time(Duration::from_secs(20));
+    let run = |padded: bool| {
+        Sandblast::builder(2048, 2048)
+            .seed(7)
+            .padded(padded)
+            .build()
+            .unwrap()
+    };
+    let (stitched, padded) = (run(false), run(true));
+    let route = stitched.run(&ex, "di-6", &mut |_| {}).unwrap().how;
+    assert!(matches!(route, Route::Stitched { .. }), "{route:?}");
+    g.bench_function("stitched_2048", |b| {
+        b.iter(|| stitched.run(black_box(&ex), "di-6", &mut |_| {}).unwrap())
+    });
+    g.bench_function("baseline_padded_rpn_2048", |b| {
+        b.iter(|| padded.run(black_box(&ex), "di-6", &mut |_| {}).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
