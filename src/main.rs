@@ -167,6 +167,10 @@ enum Command {
         /// Overlap of neighbouring patches in pixels; default: half the patch.
         #[arg(long)]
         overlap: Option<usize>,
+        /// Radius in pixels of the multi-band seam blend, below half the overlap; 0 keeps
+        /// seed 000's hard cut with a 3×3 mean. Default: an eighth of the overlap.
+        #[arg(long)]
+        seam_blend: Option<usize>,
         /// Seed of crop positions and random phases.
         #[arg(long, default_value_t = 0)]
         seed: u64,
@@ -784,6 +788,7 @@ fn run(command: Command) -> Result<()> {
             out,
             patch,
             overlap,
+            seam_blend,
             seed,
             padded,
             match_histogram,
@@ -806,6 +811,9 @@ fn run(command: Command) -> Result<()> {
             }
             if let Some(o) = overlap {
                 b = b.overlap(o);
+            }
+            if let Some(r) = seam_blend {
+                b = b.seam_blend(r);
             }
             let pipeline = b.build()?;
             check_output(&out)?;

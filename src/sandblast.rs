@@ -47,6 +47,7 @@ pub struct Sandblast {
     exemplar_spacing_um: Option<f64>,
     patch: Option<usize>,
     overlap: Option<usize>,
+    seam_blend: Option<usize>,
     seed: u64,
     padded: bool,
     fill_missing: bool,
@@ -81,6 +82,16 @@ impl SandblastBuilder {
     /// the patch (seed 000, Fig. 8: 256 and 128).
     pub fn overlap(mut self, px: usize) -> Self {
         self.0.overlap = Some(px);
+        self
+    }
+    /// Radius in pixels of the multi-band seam blend, below half the overlap; 0 keeps seed
+    /// 000's hard cut (with its 3×3 mean). Default: o/8. The hard cut leaves a step where
+    /// two RPN patches differ by a smooth offset, which on a smooth map (a steep
+    /// spectrum) adds orders of magnitude of mid-frequency power: al3d-1 stitched to
+    /// 1024² has a PSD error of 0.76 with it and 0.28 with the default blend (see
+    /// [`StitchParams::with_blend`]).
+    pub fn seam_blend(mut self, px: usize) -> Self {
+        self.0.seam_blend = Some(px);
         self
     }
     /// Seed of crop positions and random phases. Default: 0.
@@ -135,8 +146,9 @@ impl SandblastBuilder {
         {
             return Err(Error::param("patch", p, "a side of 8 to 4096 pixels"));
         }
-        if let (Some(p), Some(o)) = (s.patch, s.overlap) {
-            StitchParams::new(p, o)?;
+        if let Some(p) = s.patch {
+            let o = s.overlap.unwrap_or(p / 2).max(1);
+            StitchParams::new(p, o)?.with_blend(s.seam_blend.unwrap_or(0))?;
         } else if s.overlap == Some(0) {
             return Err(Error::param("overlap", 0, "at least 1 pixel"));
         }
@@ -188,6 +200,7 @@ impl Sandblast {
             exemplar_spacing_um: None,
             patch: None,
             overlap: None,
+            seam_blend: None,
             seed: 0,
             padded: false,
             fill_missing: false,
@@ -285,10 +298,15 @@ impl Sandblast {
                 ));
             }
             let params = StitchParams::new(p, self.overlap.unwrap_or(p / 2).max(1))?;
+            let params = params.with_blend(self.seam_blend.unwrap_or(params.overlap() / 8))?;
             let (nx, ny) = (params.count(w), params.count(h));
             progress(&format!(
-                "stitching {nx}×{ny} RPN patches of {p}×{p} px, overlap {} px",
-                params.overlap()
+                "stitching {nx}×{ny} RPN patches of {p}×{p} px, overlap {} px, {}",
+                params.overlap(),
+                match params.blend() {
+                    0 => "hard-cut seams".to_string(),
+                    r => format!("seams blended in bands up to {r} px"),
+                }
             ));
             let patches = rpn_patches(nx, ny, p, self.seed, |x, y| crop_of(x, y, p, p), ew, eh)?;
             let mut patches: Vec<Option<Vec<f32>>> = patches.into_iter().map(Some).collect();
