@@ -177,8 +177,8 @@ enum Command {
         /// Padded RPN with a sigmoid border instead of stitching (seed 000, Fig. 8).
         #[arg(long)]
         padded: bool,
-        /// Map the output back to the measured height distribution (Gaussianise before
-        /// RPN, measured quantiles after it).
+        /// Match each RPN patch to the measured height distribution, keeping its Fourier
+        /// modulus as nearly as it can (IAAFT), before stitching.
         #[arg(long)]
         match_histogram: bool,
         /// Fill missing (NaN) points smoothly instead of refusing the measurement.

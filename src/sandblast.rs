@@ -13,17 +13,16 @@
 //!    applied once to the whole.
 //!
 //! RPN makes any input Gaussian. By default the pipeline is the paper's, and keeps the
-//! spectrum; [`SandblastBuilder::match_histogram`] adds, as the banks do (Heitz &
-//! Neyret's T), a Gaussianisation before RPN and a map back through the measurement's
-//! quantiles after it, which keeps the height histogram and changes the spectrum of
-//! strongly non-Gaussian maps (pits, forms). Crops are tapered with the same Hann window
-//! as the bake ([`crate::bake::Taper`]).
+//! spectrum; [`SandblastBuilder::match_histogram`] matches each RPN output to the
+//! measured height distribution while keeping its Fourier modulus as nearly as it can
+//! (IAAFT, [`match_histogram_keeping_modulus`]), before stitching, which gives back the
+//! skew and tails of strongly non-Gaussian maps (pits, forms). Crops are tapered with the
+//! same Hann window as the bake ([`crate::bake::Taper`]).
 
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
-use crate::analysis::gauss::{gaussianize, normal_cdf, quantile};
-use crate::analysis::rpn::random_phase_noise;
+use crate::analysis::rpn::{match_histogram_keeping_modulus, random_phase_noise};
 use crate::analysis::stitch::{StitchParams, stitch};
 use crate::bake::{Baker, Taper};
 use crate::error::{Error, Result};
@@ -37,6 +36,8 @@ pub const MAX_OUTPUT_PIXELS: usize = 1 << 30;
 /// longest wavelengths (an RPN patch holds none longer than itself): on the stationary
 /// measured maps, 512 px patches give a PSD error about half that of seed 000's 256.
 pub const DEFAULT_PATCH: usize = 512;
+/// Histogram/modulus alternations per RPN output with `match_histogram`.
+pub const IAAFT_ITERATIONS: usize = 8;
 
 /// Validated pipeline parameters. Make one with [`Sandblast::builder`].
 #[derive(Clone, Debug)]
@@ -114,9 +115,11 @@ impl SandblastBuilder {
         self.0.taper = taper;
         self
     }
-    /// Gaussianise before RPN and map back through the measurement's quantiles after it,
-    /// so the output has the measured height distribution. Default: false (seed 000's
-    /// pipeline: RPN output is Gaussian).
+    /// Match each RPN output to the measured height distribution, keeping its Fourier
+    /// modulus as nearly as it can ([`IAAFT_ITERATIONS`] alternations, ending on the
+    /// histogram), before stitching. Default: false (seed 000's pipeline: RPN output is
+    /// Gaussian). On the 27 measured maps at 1024² it passes W1 and PSD error on 15
+    /// against 13 without it (di-6's W1: 0.005 against 0.101).
     pub fn match_histogram(mut self, on: bool) -> Self {
         self.0.match_histogram = on;
         self
@@ -257,35 +260,52 @@ impl Sandblast {
         };
         let (ew, eh, c) = (exemplar.width, exemplar.height, exemplar.channels);
         let (w, h) = (self.width, self.height);
-        // With `match_histogram`, T: Gaussianise each channel, keeping the sorted heights
-        // for T⁻¹.
-        let (gauss, sorted): (Vec<Vec<f64>>, Vec<Vec<f64>>) = (0..c)
-            .map(|ch| {
-                let plane = exemplar.channel_f64(ch);
-                if self.match_histogram {
-                    gaussianize(&plane)
-                } else {
-                    (plane, Vec::new())
-                }
-            })
-            .unzip();
+        let planes_in: Vec<Vec<f64>> = (0..c).map(|ch| exemplar.channel_f64(ch)).collect();
+        // With `match_histogram`, each RPN output is matched to the measured height
+        // distribution keeping its Fourier modulus (IAAFT), before it is stitched.
+        let sorted: Vec<Vec<f64>> = if self.match_histogram {
+            planes_in
+                .iter()
+                .map(|p| {
+                    let mut v = p.clone();
+                    v.sort_unstable_by(f64::total_cmp);
+                    v
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let finish = |planes: Vec<Vec<f64>>, pw: usize, ph: usize| -> Vec<Vec<f64>> {
+            if sorted.is_empty() {
+                return planes;
+            }
+            planes
+                .iter()
+                .zip(&sorted)
+                .map(|(p, s)| match_histogram_keeping_modulus(p, pw, ph, s, IAAFT_ITERATIONS))
+                .collect()
+        };
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(self.seed);
         let crop_of = |x0: usize, y0: usize, pw: usize, ph: usize| {
-            self.taper.crops(&gauss, ew, [x0, y0, pw, ph])
+            self.taper.crops(&planes_in, ew, [x0, y0, pw, ph])
         };
         let (planes, how) = if ew >= w && eh >= h {
             let (x0, y0) = (rng.random_range(0..=ew - w), rng.random_range(0..=eh - h));
             progress(&format!(
                 "the exemplar ({ew}×{eh}) covers {w}×{h}: crop at ({x0}, {y0}), RPN"
             ));
-            let planes = random_phase_noise(&crop_of(x0, y0, w, h), w, h, &mut rng);
+            let planes = finish(
+                random_phase_noise(&crop_of(x0, y0, w, h), w, h, &mut rng),
+                w,
+                h,
+            );
             (interleave(&planes, w, h)?, Route::Crop)
         } else if self.padded {
             progress(&format!(
                 "padded RPN: {ew}×{eh} scaled and padded to {w}×{h} with a sigmoid border"
             ));
-            let padded: Vec<Vec<f64>> = gauss.iter().map(|p| pad(p, ew, eh, w, h)).collect();
-            let planes = random_phase_noise(&padded, w, h, &mut rng);
+            let padded: Vec<Vec<f64>> = planes_in.iter().map(|p| pad(p, ew, eh, w, h)).collect();
+            let planes = finish(random_phase_noise(&padded, w, h, &mut rng), w, h);
             (interleave(&planes, w, h)?, Route::Padded)
         } else {
             let side = ew.min(eh);
@@ -308,7 +328,14 @@ impl Sandblast {
                     r => format!("seams blended in bands up to {r} px"),
                 }
             ));
-            let patches = rpn_patches(nx, ny, p, self.seed, |x, y| crop_of(x, y, p, p), ew, eh)?;
+            let patches = rpn_patches(
+                (nx, ny),
+                p,
+                self.seed,
+                |x, y| crop_of(x, y, p, p),
+                |planes| finish(planes, p, p),
+                (ew, eh),
+            )?;
             let mut patches: Vec<Option<Vec<f32>>> = patches.into_iter().map(Some).collect();
             let raster = stitch(w, h, c, params, |i, j, _| {
                 patches[j * nx + i]
@@ -326,14 +353,8 @@ impl Sandblast {
                 },
             )
         };
-        let raster = if self.match_histogram {
-            progress("mapping back to the measured height distribution");
-            untransform(planes, &sorted)
-        } else {
-            planes
-        };
         Ok(SandblastOutput {
-            raster,
+            raster: planes,
             spacing_um,
             exemplar,
             how,
@@ -399,15 +420,15 @@ pub fn pad(plane: &[f64], iw: usize, ih: usize, w: usize, h: usize) -> Vec<f64> 
 
 /// RPN patches of random crops, one per patch of an `nx × ny` stitching grid, made in
 /// parallel. Patch (i, j) draws its crop and phases from its own generator, seeded by
-/// the hash of (seed, i, j), so the result does not depend on the thread count.
+/// the hash of (seed, i, j), so the result does not depend on the thread count; crops
+/// lie inside the `ew × eh` exemplar, and `finish` gets each patch's planes after RPN.
 fn rpn_patches(
-    nx: usize,
-    ny: usize,
+    (nx, ny): (usize, usize),
     p: usize,
     seed: u64,
     crop: impl Fn(usize, usize) -> Vec<Vec<f64>> + Sync,
-    ew: usize,
-    eh: usize,
+    finish: impl Fn(Vec<Vec<f64>>) -> Vec<Vec<f64>> + Sync,
+    (ew, eh): (usize, usize),
 ) -> Result<Vec<Vec<f32>>> {
     let n = nx * ny;
     let threads = crate::stream::default_threads().clamp(1, n);
@@ -423,7 +444,7 @@ fn rpn_patches(
         let mut rng =
             Xoshiro256PlusPlus::seed_from_u64(((hsh[0] as u64) << 32 | hsh[1] as u64) ^ seed);
         let (x0, y0) = (rng.random_range(0..=ew - p), rng.random_range(0..=eh - p));
-        let planes = random_phase_noise(&crop(x0, y0), p, p, &mut rng);
+        let planes = finish(random_phase_noise(&crop(x0, y0), p, p, &mut rng));
         interleave(&planes, p, p).map(|r| r.data)
     };
     let mut out: Vec<Option<Result<Vec<f32>>>> = (0..n).map(|_| None).collect();
@@ -457,24 +478,6 @@ fn interleave(planes: &[Vec<f64>], w: usize, h: usize) -> Result<Raster> {
         r.set_channel_f64(ch, plane);
     }
     Ok(r)
-}
-
-/// T⁻¹: each channel standardised by its own mean and deviation, then mapped through the
-/// measurement's quantiles at Φ(z).
-fn untransform(mut r: Raster, sorted: &[Vec<f64>]) -> Raster {
-    for (ch, s) in sorted.iter().enumerate() {
-        let plane = r.channel_f64(ch);
-        let n = plane.len().max(1) as f64;
-        let mean = plane.iter().sum::<f64>() / n;
-        let sd = (plane.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
-        let sd = if sd > 0.0 { sd } else { 1.0 };
-        let mapped: Vec<f64> = plane
-            .iter()
-            .map(|v| quantile(s, normal_cdf((v - mean) / sd)))
-            .collect();
-        r.set_channel_f64(ch, &mapped);
-    }
-    r
 }
 
 #[cfg(test)]

@@ -61,6 +61,58 @@ pub fn random_phase_noise(
         .collect()
 }
 
+/// Matches a plane to a height distribution while keeping its Fourier modulus as
+/// nearly as it can: the iterative amplitude-adjusted Fourier transform (Schreiber and
+/// Schmitz 1996). It alternates, `iterations` times, (a) giving each sample the value of
+/// its rank in the target distribution (`sorted` ascending, any length: its quantiles at
+/// (rank + ½)/n are used) and (b) restoring the Fourier modulus the plane has on entry,
+/// keeping the phases; it ends on (a), so the histogram is exact and the modulus close.
+/// On an RPN output (a Gaussian-looking field) this gives back a measured map's skew and
+/// tails — pits of a blasted surface — that RPN alone loses, at little cost to its
+/// spectrum.
+pub fn match_histogram_keeping_modulus(
+    plane: &[f64],
+    width: usize,
+    height: usize,
+    sorted: &[f64],
+    iterations: usize,
+) -> Vec<f64> {
+    let n = plane.len();
+    if n == 0 || sorted.is_empty() {
+        return plane.to_vec();
+    }
+    let targets: Vec<f64> = (0..n)
+        .map(|r| crate::analysis::gauss::quantile(sorted, (r as f64 + 0.5) / n as f64))
+        .collect();
+    let mut plan = Fft2::new(width, height);
+    let modulus: Vec<f64> = forward_real(&mut plan, plane)
+        .iter()
+        .map(|c| c.norm())
+        .collect();
+    let mut order: Vec<usize> = (0..n).collect();
+    let mut x = plane.to_vec();
+    for it in 0..=iterations {
+        order.sort_unstable_by(|&a, &b| x[a].total_cmp(&x[b]));
+        for (r, &i) in order.iter().enumerate() {
+            x[i] = targets[r];
+        }
+        if it == iterations {
+            break;
+        }
+        let mut spec = forward_real(&mut plan, &x);
+        for (s, &m) in spec.iter_mut().zip(&modulus) {
+            let a = s.norm();
+            *s = if a > 0.0 {
+                *s * (m / a)
+            } else {
+                Complex64::new(m, 0.0)
+            };
+        }
+        x = inverse_real(&mut plan, spec);
+    }
+    x
+}
+
 /// ADSN of one or more planes sharing one white noise (seed 000 §3.1.1):
 /// `ADSN(I) = μ + (I − μ) ⊛ W / √(MN)` with W standard Gaussian white noise and ⊛ the
 /// periodic convolution, computed by FFT. Output mean is μ exactly; its expected power
@@ -96,6 +148,59 @@ pub fn asymptotic_spot_noise(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// IAAFT ends with the target histogram exactly, and keeps the Fourier modulus much
+    /// nearer than a plain rank remap does: on an RPN output of a skewed field matched to
+    /// its own skewed heights, the relative modulus error (L2 over frequencies) must be
+    /// below 0.6× the remap's (measured: 0.282 against 0.566).
+    #[test]
+    fn iaaft_matches_the_histogram_and_nearly_keeps_the_modulus() {
+        let (w, h) = (64, 48);
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+        // A smooth, strongly skewed field: exp of a blurred noise.
+        let noise: Vec<f64> = (0..w * h).map(|_| rng.random::<f64>() - 0.5).collect();
+        let field: Vec<f64> = (0..w * h)
+            .map(|k| {
+                let (x, y) = (k % w, k / w);
+                let mut s = 0.0;
+                for dy in 0..4 {
+                    for dx in 0..4 {
+                        s += noise[((y + dy) % h) * w + (x + dx) % w];
+                    }
+                }
+                (2.0 * s).exp()
+            })
+            .collect();
+        let mut sorted = field.clone();
+        sorted.sort_unstable_by(f64::total_cmp);
+        let rpn = random_phase_noise(std::slice::from_ref(&field), w, h, &mut rng).remove(0);
+        let mut plan = Fft2::new(w, h);
+        let modulus = |p: &[f64], plan: &mut Fft2| -> Vec<f64> {
+            forward_real(plan, p).iter().map(|c| c.norm()).collect()
+        };
+        let target = modulus(&rpn, &mut plan);
+        let err = |p: &[f64], plan: &mut Fft2| {
+            let m = modulus(p, plan);
+            let num: f64 = m.iter().zip(&target).map(|(a, b)| (a - b).powi(2)).sum();
+            (num / target.iter().map(|b| b * b).sum::<f64>()).sqrt()
+        };
+        let iaaft = match_histogram_keeping_modulus(&rpn, w, h, &sorted, 8);
+        let remap = match_histogram_keeping_modulus(&rpn, w, h, &sorted, 0);
+        let mut got = iaaft.clone();
+        got.sort_unstable_by(f64::total_cmp);
+        for (a, b) in got.iter().zip(&sorted) {
+            assert!(
+                (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                "histogram: {a} vs {b}"
+            );
+        }
+        let (e_iaaft, e_remap) = (err(&iaaft, &mut plan), err(&remap, &mut plan));
+        println!("modulus error: IAAFT {e_iaaft:.4}, plain remap {e_remap:.4}");
+        assert!(
+            e_iaaft < 0.6 * e_remap,
+            "modulus error: IAAFT {e_iaaft:.4}, plain remap {e_remap:.4}"
+        );
+    }
     use rand::SeedableRng;
     use rand_xoshiro::Xoshiro256PlusPlus;
 
