@@ -10,6 +10,7 @@ use std::time::Duration;
 
 #[path = "../tests/common/mod.rs"]
 mod common;
+mod support;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
@@ -17,7 +18,7 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use surftile::bake::Baker;
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
-use surftile::stream::{Region, Surface, ToroidalSurface};
+use surftile::stream::{Surface, ToroidalSurface};
 
 fn bench(c: &mut Criterion) {
     let ex = read_image(&common::repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
@@ -33,25 +34,7 @@ fn bench(c: &mut Criterion) {
     });
     let bank = baker.bake(&ex, "di-6", &mut |_| {}).unwrap();
     let surface = ToroidalSurface::new(&bank, 3).unwrap();
-    let side = 4096usize;
-    let n = side * side;
-    g.throughput(Throughput::Bytes((n * 4) as u64));
-    let region = Region::new(-123456.0, 987654.0, side, side);
-    let mut out = vec![0.0f32; n];
-    g.bench_function("fill_step1_4096", |b| {
-        b.iter(|| {
-            surface.fill(black_box(&region), &mut out).unwrap();
-            black_box(out[n / 2])
-        })
-    });
-    let src = vec![1.0f32; n];
-    let mut dst = vec![0.0f32; n];
-    g.bench_function("baseline_memcpy_4096", |b| {
-        b.iter(|| {
-            dst.copy_from_slice(black_box(&src));
-            black_box(dst[n / 2])
-        })
-    });
+    support::fill_vs_memcpy(&mut g, &surface, 4096);
     g.finish();
 
     let mut g = c.benchmark_group("roller_sample");
