@@ -19,7 +19,7 @@ use surftile::bake::Baker;
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
 use surftile::sandblast::{Route, Sandblast};
-use surftile::stream::ToroidalSurface;
+use surftile::stream::{Region, ToroidalSurface};
 
 fn bench(c: &mut Criterion) {
     let ex = read_image(&common::repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
@@ -35,7 +35,13 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("quilt");
     g.sample_size(20).measurement_time(Duration::from_secs(8));
-    support::fill_vs_memcpy(&mut g, &surface, 4096);
+    support::fill_vs_memcpy(
+        &mut g,
+        &surface,
+        &Region::new(-123_456.0, 987_654.0, 4096, 4096),
+        "wang_fill_step1_4096",
+        true,
+    );
     g.finish();
 
     let mut g = c.benchmark_group("sandblast");

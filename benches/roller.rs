@@ -18,7 +18,7 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use surftile::bake::Baker;
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
-use surftile::stream::{Surface, ToroidalSurface};
+use surftile::stream::{Region, Surface, ToroidalSurface};
 
 fn bench(c: &mut Criterion) {
     let ex = read_image(&common::repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
@@ -34,7 +34,13 @@ fn bench(c: &mut Criterion) {
     });
     let bank = baker.bake(&ex, "di-6", &mut |_| {}).unwrap();
     let surface = ToroidalSurface::new(&bank, 3).unwrap();
-    support::fill_vs_memcpy(&mut g, &surface, 4096);
+    support::fill_vs_memcpy(
+        &mut g,
+        &surface,
+        &Region::new(-123_456.0, 987_654.0, 4096, 4096),
+        "fill_step1_4096",
+        true,
+    );
     g.finish();
 
     let mut g = c.benchmark_group("roller_sample");
