@@ -536,13 +536,7 @@ impl Bank {
         if offset != payload.len() {
             return Err(bad("the data is longer than the header says"));
         }
-        let bank = Bank {
-            header,
-            texels,
-            luts,
-        };
-        bank.validate(what)?;
-        Ok(bank)
+        Bank::new(header, texels, luts, what)
     }
 
     /// Reads and validates a bank file.
