@@ -65,9 +65,20 @@ pub fn hash_vertex(seed: u32, i: i64, j: i64) -> [u32; 2] {
 /// long as a PCG hash's. The toroidal rule's per-cell choice, on its sample path.
 #[inline(always)]
 pub fn hash_tile(seed: u32, i: i64, j: i64) -> u32 {
-    let mut h = fold_cell(i).wrapping_mul(0x9E37_79B1)
-        ^ fold_cell(j).wrapping_mul(0x85EB_CA77)
-        ^ seed.wrapping_mul(0xC2B2_AE3D).wrapping_add(0x2545_F491);
+    hash_tile_keyed(tile_key(seed), i, j)
+}
+
+/// The seed's term in [`hash_tile`], for callers that hash many cells with one seed.
+#[inline(always)]
+pub fn tile_key(seed: u32) -> u32 {
+    seed.wrapping_mul(0xC2B2_AE3D).wrapping_add(0x2545_F491)
+}
+
+/// [`hash_tile`] with the seed's term [`tile_key`] computed once.
+#[inline(always)]
+pub fn hash_tile_keyed(key: u32, i: i64, j: i64) -> u32 {
+    let mut h =
+        fold_cell(i).wrapping_mul(0x9E37_79B1) ^ fold_cell(j).wrapping_mul(0x85EB_CA77) ^ key;
     h ^= h >> 16;
     h = h.wrapping_mul(0x7FEB_352D);
     h ^= h >> 15;

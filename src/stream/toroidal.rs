@@ -9,7 +9,7 @@ use std::ops::Range;
 use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result};
-use crate::hash::{hash_tile, pick_tile, wang_tile};
+use crate::hash::{hash_tile, hash_tile_keyed, pick_tile, tile_key, wang_tile};
 use crate::lattice::Lattice;
 
 /// One mip level: the level lattice's HNF and the tiles stored on it.
@@ -142,6 +142,10 @@ pub struct ToroidalSurface {
     /// For a Wang bank ([`Rule::Wang`]): K, the colours per edge direction; the cell
     /// shows [`wang_tile`] instead of a hashed pick.
     pub(crate) wang: Option<u32>,
+    /// Neither Wang nor rhomboid: the HNF cell's hash picks the tile (the lean path).
+    hashed_by_cell: bool,
+    /// [`tile_key`] of the seed.
+    key: u32,
 }
 
 impl ToroidalSurface {
@@ -177,14 +181,31 @@ impl ToroidalSurface {
                 }
             })
             .collect();
+        let wang = (h.rule == Rule::Wang).then(|| h.wang_colours.unwrap_or(1) as u32);
+        Ok(Self::from_levels(
+            seed,
+            h.channels,
+            h.tiles as u32,
+            levels,
+            wang,
+        ))
+    }
+
+    /// The surface over checked levels (level 0 first, at least one).
+    fn from_levels(
+        seed: u32,
+        channels: usize,
+        tiles: u32,
+        levels: Vec<Level>,
+        wang: Option<u32>,
+    ) -> ToroidalSurface {
         // The tiles differ only inside their rhomboid {s·u + t·v : s, t ∈ [0, 1)} of the
         // reduced basis (outside it, in the cut band, they are identical). On a
         // rectangular lattice the rhomboids are the HNF cells (up to which side a
         // border pixel falls on, where the tiles agree); on an oblique one the HNF rows
         // cut through them, so the tile is chosen by rhomboid cell instead.
         let l0 = &levels[0];
-        let wang = (h.rule == Rule::Wang).then(|| h.wang_colours.unwrap_or(1) as u32);
-        let rhomboid = (h.tiles > 1 && l0.b != 0 && wang.is_none()).then(|| {
+        let rhomboid = (tiles > 1 && l0.b != 0 && wang.is_none()).then(|| {
             let [u, v] = Lattice {
                 a: l0.a,
                 b: l0.b,
@@ -199,14 +220,16 @@ impl ToroidalSurface {
                 inv_det: 1.0 / det as f64,
             }
         });
-        Ok(ToroidalSurface {
+        ToroidalSurface {
             seed,
-            channels: h.channels,
-            tiles: h.tiles as u32,
+            channels,
+            tiles,
             levels,
+            hashed_by_cell: rhomboid.is_none() && wang.is_none(),
+            key: tile_key(seed),
             rhomboid,
             wang,
-        })
+        }
     }
 
     /// The lattice cell that pixel (x, y) lies in (for seam scores): the HNF cell
@@ -240,6 +263,16 @@ impl ToroidalSurface {
         if self.tiles == 1 {
             return 0;
         }
+        if self.hashed_by_cell {
+            return pick_tile(hash_tile_keyed(self.key, i, j), self.tiles) as usize;
+        }
+        self.tile_of_special(l, i, j, x, y)
+    }
+
+    /// [`Self::tile_of`] for Wang banks and rhomboid cells, kept out of line: inlined,
+    /// its registers made every `height` call save and restore three more registers.
+    #[inline(never)]
+    fn tile_of_special(&self, l: usize, i: i64, j: i64, x: i64, y: i64) -> usize {
         if let Some(k) = self.wang {
             return wang_tile(self.seed, i, j, k) as usize;
         }
@@ -317,18 +350,43 @@ impl ToroidalSurface {
         out[..C].copy_from_slice(&acc);
     }
 
-    /// The one-channel, level-0 bilinear sample when its four texels lie inside one cell
-    /// and the cell arithmetic needs no exact fallback: the lean path of `height` (all
-    /// but one row and one column of each tile; [`Self::height_slow`] takes the rest).
+    /// The one-channel, level-0 bilinear sample at (x, y) when its four texels lie
+    /// inside one cell: the lean path of `height` (all but one row and one column of
+    /// each tile; [`Self::height_slow`] takes the rest, and far rows of a sheared
+    /// lattice).
+    ///
+    /// The cell comes from ⌊y/C⌋ and ⌊(x − j·B)/A⌋ estimated in floating point, without
+    /// the exact division's corrections: a wrong estimate puts the texel offset outside
+    /// [0, A − 1) or [0, C − 1), which the same unsigned compare that keeps the texel off
+    /// the cell's last row and column rejects, so the answer is always the exact cell's.
+    ///
+    /// # Safety
+    /// (x, y) is in range (|x|, |y| < 2⁵²), and the surface has one channel.
     #[inline(always)]
-    fn bilinear_inside(&self, xi: i64, yi: i64, fx: f32, fy: f32) -> Option<f32> {
-        let lv = &self.levels[0];
-        // SAFETY: |xi|, |yi| < 2⁵² (in range), and unshift keeps |j·B| ≤ 2⁶².
-        let (j, ly) = unsafe { div_floor_est(yi, lv.c, lv.inv_c)? };
-        let (i, lx) = unsafe { div_floor_est(lv.unshift(xi, j)?, lv.a, lv.inv_a)? };
-        if lx + 1 >= lv.a || ly + 1 >= lv.c {
+    unsafe fn bilinear_inside(&self, x: f64, y: f64) -> Option<f32> {
+        // SAFETY: `new` builds at least one level (Bank::validate).
+        let lv = unsafe { self.levels.get_unchecked(0) };
+        let (xf, yf) = (x.floor(), y.floor());
+        // SAFETY: |x|, |y| < 2⁵², so their floors and the quotients by A, C ≥ 1 (and by
+        // A of x − j·B, |j·B| ≤ 2⁶² by `unshift`) fit in an i64.
+        let (xi, yi, j) = unsafe {
+            (
+                xf.to_int_unchecked::<i64>(),
+                yf.to_int_unchecked::<i64>(),
+                (y * lv.inv_c).floor().to_int_unchecked::<i64>(),
+            )
+        };
+        let ly = yi.wrapping_sub(j.wrapping_mul(lv.c));
+        let xs = lv.unshift(xi, j)?;
+        // SAFETY: as above.
+        // ⌊x/A⌋ = ⌊⌊x⌋/A⌋: on rectangular lattices the estimate need not wait for ⌊x⌋.
+        let xs_f = if lv.b == 0 { x } else { xs as f64 };
+        let i = unsafe { (xs_f * lv.inv_a).floor().to_int_unchecked::<i64>() };
+        let lx = xs.wrapping_sub(i.wrapping_mul(lv.a));
+        if (lx as u64) >= (lv.a - 1) as u64 || (ly as u64) >= (lv.c - 1) as u64 {
             return None;
         }
+        let (fx, fy) = ((x - xf) as f32, (y - yf) as f32);
         let p = self.tile_of(0, i, j, xi, yi) * lv.tile_stride + (ly * lv.a + lx) as usize;
         let row = lv.a as usize;
         let t = &lv.texels;
@@ -404,14 +462,15 @@ impl Surface for ToroidalSurface {
         }
     }
 
+    /// `#[inline]`: the lean path is short, and callers in other crates (the renderers
+    /// that call this millions of times) can then interleave consecutive samples.
+    #[inline]
     fn height(&self, x: f64, y: f64) -> f32 {
         if self.channels != 1 || !in_range(x, y) {
             return self.height_slow(x, y);
         }
-        // SAFETY: in range, so |x|, |y| < 2⁵².
-        let ((xi, fx), (yi, fy)) = unsafe { (floor_split(x), floor_split(y)) };
-        self.bilinear_inside(xi, yi, fx as f32, fy as f32)
-            .unwrap_or_else(|| self.height_slow(x, y))
+        // SAFETY: in range, and one channel.
+        unsafe { self.bilinear_inside(x, y) }.unwrap_or_else(|| self.height_slow(x, y))
     }
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
@@ -440,6 +499,82 @@ impl Surface for ToroidalSurface {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One level of `tiles` random tiles on the HNF lattice (A, B, C).
+    fn random_level(a: i64, b: i64, c: i64, tiles: usize, seed: u32) -> Level {
+        let n = (a * c) as usize;
+        let texels = (0..tiles * n)
+            .map(|k| (hash_tile(seed, k as i64, 0) >> 8) as f32 / 65_536.0 - 128.0)
+            .collect();
+        Level {
+            a,
+            b,
+            c,
+            inv_a: 1.0 / a as f64,
+            inv_c: 1.0 / c as f64,
+            j_safe: (1u64 << 62) / (b.max(1) as u64),
+            scale: 1.0,
+            centre: 0.0,
+            tile_stride: n,
+            texels,
+        }
+    }
+
+    /// The lean `height` path (floating-point cell estimates, no corrections) returns
+    /// the general sampler's bits everywhere: near 0, on cell borders, at 2⁴⁰ and near
+    /// the coordinate limit, on rectangular and sheared lattices, with 1 and 3 tiles.
+    #[test]
+    fn lean_height_equals_the_general_sampler() {
+        let edge = super::super::MAX_COORDINATE;
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for (a, b, c) in [
+            (32, 0, 24),
+            (40, 13, 29),
+            (437, 0, 437),
+            (7, 5, 3),
+            (1086, 1000, 2),
+        ] {
+            for tiles in [1u32, 3] {
+                let level = random_level(a, b, c, tiles as usize, a as u32);
+                let s = ToroidalSurface::from_levels(5, 1, tiles, vec![level], None);
+                let mut checked = 0;
+                for centre in [
+                    0.0,
+                    -1e3,
+                    1.1e12,
+                    -((1u64 << 40) as f64),
+                    edge - 3e4,
+                    3e4 - edge,
+                ] {
+                    for k in 0..4000 {
+                        let (x, y) = (centre + 2e4 * (next() - 0.5), centre + 2e4 * (next() - 0.5));
+                        // Every tenth point on a texel corner, where cells meet.
+                        let (x, y) = if k % 10 == 0 {
+                            (x.floor(), y.floor())
+                        } else {
+                            (x, y)
+                        };
+                        let mut general = [0.0f32];
+                        s.sample_footprint(x, y, 1.0, &mut general);
+                        let lean = s.height(x, y);
+                        assert_eq!(
+                            lean.to_bits(),
+                            general[0].to_bits(),
+                            "({x}, {y}) on ({a}, {b}, {c}) with {tiles} tiles"
+                        );
+                        checked += lean.is_finite() as usize;
+                    }
+                }
+                assert!(checked > 20_000, "{checked} finite samples");
+            }
+        }
+    }
 
     #[test]
     fn div_floor_matches_euclid_everywhere() {
