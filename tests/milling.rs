@@ -72,6 +72,55 @@ fn indexed_sampler_matches_the_brute_force_twin() {
     eprintln!("{compared} points compared, worst relative difference {worst:e}");
 }
 
+/// `height()` draws rings through a per-thread cache; the cached evaluation gives the
+/// uncached one's bits, for two surfaces (different seeds, so different rings under the
+/// same ids) queried alternately, on parallel and spiral paths, for every interaction,
+/// with repeated and far-apart points (hits, misses and slot collisions).
+#[test]
+fn cached_heights_equal_uncached_ones() {
+    let mut compared = 0usize;
+    let mut nonzero = 0usize;
+    for path in [
+        "kind = \"parallel\"\nangle_deg = 30.0\nreorder = 0.3",
+        "kind = \"spiral\"\norigin_mm = [0.7, -0.4]\nreorder = 0.3",
+    ] {
+        for interaction in ["min", "latest", "convex"] {
+            let text = format!("[interaction]\nkind = \"{interaction}\"\n[path]\n{path}\n");
+            let c = config(&text);
+            let surfaces = [
+                MillingSurface::new(&c, 6.1, 3).unwrap(),
+                MillingSurface::new(&c, 6.1, 4).unwrap(),
+            ];
+            let mut state = 0x2545_F491_4F6C_DD1Du64;
+            for k in 0..3000 {
+                let mut u = || {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state >> 11) as f64 / (1u64 << 53) as f64
+                };
+                // Mostly a 6 mm field (hits), every fifth point anywhere within 10⁴ mm.
+                let span = if k % 5 == 0 { 1e4 } else { 6.0 };
+                let (x, y) = (span * (u() - 0.5), span * (u() - 0.5));
+                let s = &surfaces[k % 2];
+                let (cached, plain) = (s.eval_mm_cached(x, y), s.eval_mm(x, y));
+                assert_eq!(
+                    cached.to_bits(),
+                    plain.to_bits(),
+                    "{text}\nseed {} at ({x}, {y}) mm: cached {cached}, uncached {plain}",
+                    3 + k % 2
+                );
+                nonzero += (plain != 0.0) as usize;
+                compared += 1;
+            }
+        }
+    }
+    assert!(
+        nonzero > compared / 2,
+        "only {nonzero} of {compared} points touched"
+    );
+}
+
 /// Region fills draw each ring once per block and fold ring by ring over its support;
 /// every value must still be the bits `height()` gives at that point, for every shape ×
 /// interaction × path, at whole and fractional steps, across negative coordinates and

@@ -12,7 +12,10 @@
 //!   ([`ToolPath::candidates`]): on parallel paths, the lines within reach and on each
 //!   the two short runs of centres whose annulus can contain the point; on spirals, the
 //!   turns within reach and on each the arc-length window, converted to ring indices;
-//! - the few rings found are folded in their milling order (a sort of about five keys).
+//! - the few rings found are folded in their milling order (a sort of about five keys);
+//! - `height()` keeps each thread's last-drawn rings in a small direct-mapped cache
+//!   ([`MillingSurface::eval_mm_cached`]), so scattered queries over one field draw a
+//!   ring's parameters once, not once per point.
 //!
 //! [`BruteForce`] is the slow twin: every ring of a finite path, the paper's way.
 //!
@@ -88,7 +91,27 @@ pub struct MillingSurface {
     noise_q: Vec<i16>,
     mm_per_px: f64,
     adaptation: Option<Adaptation>,
+    /// Identity of this surface's rings in the per-thread ring cache (clones share it:
+    /// their rings are the same).
+    uid: u64,
 }
+
+/// Slots of the per-thread cache of drawn rings (direct-mapped; a power of two). A
+/// slot holds one ring's [`ring::Drawn`], about 200 bytes: 200 KiB per thread.
+const RING_CACHE_SLOTS: usize = 1024;
+
+/// One cached ring: (surface uid, ring id, its draws).
+type CachedRing = Option<(u64, (i64, i64), ring::Drawn)>;
+
+thread_local! {
+    /// The rings `height()` drew last on this thread, by slot
+    /// ([`MillingSurface::eval_mm_cached`]).
+    static RING_CACHE: std::cell::RefCell<Vec<CachedRing>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Next surface uid (0 is never handed out).
+static NEXT_UID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 /// Fewest pixels across a block of [`MillingSurface::fill_rows`] worth drawing its rings
 /// once for.
@@ -140,6 +163,7 @@ impl MillingSurface {
             noise,
             mm_per_px: spacing_um / 1000.0,
             adaptation,
+            uid: NEXT_UID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
     }
 
@@ -282,6 +306,61 @@ impl MillingSurface {
                     .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
             }
         }
+    }
+
+    /// [`Self::eval_mm`] through this thread's cache of drawn rings: each candidate
+    /// ring's point-independent draws ([`ring::RingModel::drawn`]: two hashes, a dozen
+    /// normal deviates, its milling-order key) are made once and kept in a
+    /// direct-mapped slot, and [`ring::Drawn::value`] evaluates it at the point. The
+    /// values, the order of the fold and so the bits are those of [`Self::eval_mm`]
+    /// (`cached_heights_equal_uncached_ones`); only the time differs. Points near each
+    /// other share their rings (a ring covers about 2.5 mm² at d = 4 mm), so scattered
+    /// queries over a field, as a renderer or an inspection rig makes them, mostly hit;
+    /// far-apart points miss and pay the draws as before, plus the slot write.
+    #[inline]
+    pub fn eval_mm_cached(&self, x: f64, y: f64) -> f64 {
+        RING_CACHE.with(|cache| {
+            let Ok(mut cache) = cache.try_borrow_mut() else {
+                // Only if a ring's evaluation re-entered height() on this thread.
+                return self.eval_mm(x, y);
+            };
+            if cache.is_empty() {
+                cache.resize(RING_CACHE_SLOTS, None);
+            }
+            let m = &self.rings;
+            let path = &self.path;
+            let spiral = path.is_spiral();
+            let mut found: SmallVec<[(Key, f64, f64); 12]> = SmallVec::new();
+            path.candidates(x, y, m.reach_in, m.reach_out, |id| {
+                let slot =
+                    (crate::hash::hash_tile(0, id.0, id.1) as usize) & (RING_CACHE_SLOTS - 1);
+                let entry = &mut cache[slot];
+                let d = match entry {
+                    Some((uid, at, d)) if *uid == self.uid && *at == id => d,
+                    _ => {
+                        &mut entry
+                            .insert((self.uid, id, m.drawn(&path.nominal(id), spiral)))
+                            .2
+                    }
+                };
+                if let Some(v) = d.value(m, x, y, &self.lut, &self.noise_q) {
+                    found.push((d.key, v.r, v.a));
+                }
+            });
+            match m.interaction {
+                InteractionKind::Min => found.iter().fold(0.0f64, |f, v| f.min(v.1)),
+                InteractionKind::Latest => found
+                    .iter()
+                    .max_by(|a, b| a.0.cmp(&b.0))
+                    .map_or(0.0, |v| v.1),
+                InteractionKind::Convex => {
+                    found.sort_unstable_by_key(|p| p.0);
+                    found
+                        .iter()
+                        .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
+                }
+            }
+        })
     }
 
     /// Rows `rows` of `region` in blocks: the rings that can reach a block are found
@@ -597,7 +676,7 @@ impl Surface for MillingSurface {
         if !in_range(x, y) {
             return f32::NAN;
         }
-        self.adapt(self.eval_mm(x * self.mm_per_px, y * self.mm_per_px))
+        self.adapt(self.eval_mm_cached(x * self.mm_per_px, y * self.mm_per_px))
     }
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
