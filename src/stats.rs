@@ -323,6 +323,41 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
     (power, count)
 }
 
+/// Log–log slope of the radially averaged power spectrum of `r` (mean over up to 64
+/// square `window × window` windows, Hann-tapered), fitted by least squares over the
+/// integer radii in [k_lo, k_hi] (cycles per window), each radius weighted equally in
+/// log k by binning into 24 log-spaced bins. A surface whose spectrum falls as k^−β
+/// gives −β.
+pub fn psd_slope(r: &Raster, window: usize, (k_lo, k_hi): (f64, f64)) -> f64 {
+    let (power, _) = radial_psd(r, window, 64);
+    let (lo, hi) = (k_lo.max(1.0).ln(), k_hi.min((window / 2) as f64).ln());
+    let nb = 24;
+    let mut bins = vec![(0.0f64, 0.0f64, 0usize); nb];
+    for (k, &p) in power.iter().enumerate().skip(1) {
+        let lk = (k as f64).ln();
+        if lk < lo || lk > hi || p <= 0.0 {
+            continue;
+        }
+        let b = (((lk - lo) / (hi - lo)) * nb as f64).min(nb as f64 - 1.0) as usize;
+        bins[b].0 += lk;
+        bins[b].1 += p.ln();
+        bins[b].2 += 1;
+    }
+    let pts: Vec<(f64, f64)> = bins
+        .iter()
+        .filter(|b| b.2 > 0)
+        .map(|b| (b.0 / b.2 as f64, b.1 / b.2 as f64))
+        .collect();
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    sxy / sxx
+}
+
 /// PSD error (DESIGN.md): on equal-size square windows of a and b (side = the smallest
 /// side of either), radially average the power spectra, merge low-frequency bins until
 /// each holds ≥ 32 samples, and take the RMS over bins of log10 P_b − log10 P_a.
