@@ -2,3 +2,4 @@
 
 pub mod fractal;
 pub mod milling;
+pub mod voronoi;
