@@ -286,26 +286,15 @@ impl MillingSurface {
                 near.push(n);
             }
         });
-        let covering = near.iter().filter_map(|n| {
-            let ring = path.nominal(n.id);
-            Some((ring, m.finish(&ring, n, &self.lut, &self.noise_q)?))
-        });
-        match m.interaction {
-            InteractionKind::Min => covering.fold(0.0f64, |f, (_, v)| f.min(v.r)),
-            InteractionKind::Latest => covering
-                .map(|(ring, v)| (m.key_of(&ring, v.order, spiral), v.r))
-                .max_by(|a, b| a.0.cmp(&b.0))
-                .map_or(0.0, |(_, r)| r),
-            InteractionKind::Convex => {
-                let mut found: SmallVec<[(Key, f64, f64); 12]> = covering
-                    .map(|(ring, v)| (m.key_of(&ring, v.order, spiral), v.r, v.a))
-                    .collect();
-                found.sort_unstable_by_key(|p| p.0);
-                found
-                    .iter()
-                    .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
-            }
-        }
+        let mut found: SmallVec<[(Key, f64, f64); 12]> = near
+            .iter()
+            .filter_map(|n| {
+                let ring = path.nominal(n.id);
+                let v = m.finish(&ring, n, &self.lut, &self.noise_q)?;
+                Some((m.key_of(&ring, v.order, spiral), v.r, v.a))
+            })
+            .collect();
+        fold_keyed(m.interaction, &mut found)
     }
 
     /// [`Self::eval_mm`] through this thread's cache of drawn rings: each candidate
@@ -347,19 +336,7 @@ impl MillingSurface {
                     found.push((d.key, v.r, v.a));
                 }
             });
-            match m.interaction {
-                InteractionKind::Min => found.iter().fold(0.0f64, |f, v| f.min(v.1)),
-                InteractionKind::Latest => found
-                    .iter()
-                    .max_by(|a, b| a.0.cmp(&b.0))
-                    .map_or(0.0, |v| v.1),
-                InteractionKind::Convex => {
-                    found.sort_unstable_by_key(|p| p.0);
-                    found
-                        .iter()
-                        .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
-                }
-            }
+            fold_keyed(m.interaction, &mut found)
         })
     }
 
@@ -681,6 +658,24 @@ impl Surface for MillingSurface {
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         self.fill_blocks(region, rows, out);
+    }
+}
+
+/// f at a point from the rings covering it, each as (milling-order key, R_k, A_k), in
+/// any order: min, the latest ring's value, or the convex fold in milling order (§4.2).
+fn fold_keyed(interaction: InteractionKind, found: &mut [(Key, f64, f64)]) -> f64 {
+    match interaction {
+        InteractionKind::Min => found.iter().fold(0.0f64, |f, v| f.min(v.1)),
+        InteractionKind::Latest => found
+            .iter()
+            .max_by(|a, b| a.0.cmp(&b.0))
+            .map_or(0.0, |v| v.1),
+        InteractionKind::Convex => {
+            found.sort_unstable_by_key(|p| p.0);
+            found
+                .iter()
+                .fold(0.0, |f, &(_, r, a)| a * r + (1.0 - a) * f)
+        }
     }
 }
 
