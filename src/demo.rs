@@ -6,8 +6,11 @@
 //! (seed 003) on a near-regular one: the ridged X3P profile `tiles/x3p-2-crop.npy`,
 //! baked into 4 double toroidal tiles on its detected lattice and rendered at 1024².
 //! Then RSGF (seed 002) on the same profile: its lattice estimated by generalized NCC,
-//! 1024² synthesized by random sampling and gap filling. Last, face milling (seed 000 §4) from the bundled presets: a parallel path in the
-//! paper's Fig. 25 field and a spiral around its origin.
+//! 1024² synthesized by random sampling and gap filling. Then face milling (seed 000
+//! §4) from the bundled presets: a parallel path in the paper's Fig. 25 field and a
+//! spiral around its origin. Last, a shaded gallery of the seed 001 model presets
+//! (`rugged-{rock,china,casting,cells-convex,cells-concave}.png`), each with its
+//! material.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -17,7 +20,9 @@ use crate::bank::Method;
 use crate::error::{Error, Result};
 use crate::io::{Format, ReadOptions, read_image_bytes, write_atomically, write_heights};
 use crate::models::milling::{MillingConfig, MillingSurface};
+use crate::models::rugged::ModelConfig;
 use crate::render::{render_region, render_to_file};
+use crate::shade::ShadeOptions;
 use crate::stats::{compare, height_stats, seam_score};
 use crate::stream::{BlendSurface, Region, RsgfSurface, ToroidalSurface};
 
@@ -104,13 +109,20 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     for (what, name, region) in renders {
         let t = Instant::now();
         let path = dir.join(name);
-        render_to_file(&surface, &region, &path, false, spacing, &mut |_| {})?;
+        render_to_file(&surface, &region, &path, None, spacing, &mut |_| {})?;
         step(what, path, t);
     }
 
     let t = Instant::now();
     let path = dir.join("shaded.png");
-    render_to_file(&surface, &origin, &path, true, spacing, &mut |_| {})?;
+    render_to_file(
+        &surface,
+        &origin,
+        &path,
+        Some(&ShadeOptions::default()),
+        spacing,
+        &mut |_| {},
+    )?;
     step(
         "shaded view of the origin render (Phong, 8-bit PNG)",
         path,
@@ -163,7 +175,7 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
         &ToroidalSurface::new(&bank, 0)?,
         &Region::new(0.0, 0.0, 1024, 1024),
         &path,
-        false,
+        None,
         None,
         &mut |_| {},
     )?;
@@ -234,7 +246,15 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     ] {
         let t = Instant::now();
         let path = dir.join(name);
-        render_to_file(&parallel, &field, &path, shade, Some(6.1), &mut |_| {})?;
+        let shading = ShadeOptions::default();
+        render_to_file(
+            &parallel,
+            &field,
+            &path,
+            shade.then_some(&shading),
+            Some(6.1),
+            &mut |_| {},
+        )?;
         step(what, path, t);
     }
     let t = Instant::now();
@@ -245,7 +265,7 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
         &spiral,
         &Region::new(-256.0, -256.0, 512, 512),
         &path,
-        true,
+        Some(&ShadeOptions::default()),
         Some(16.0),
         &mut |_| {},
     )?;
@@ -254,5 +274,27 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
         path,
         t,
     );
+    // Seed 001: each model preset, shaded with its material.
+    for name in ModelConfig::preset_names() {
+        let t = Instant::now();
+        let model = ModelConfig::preset(name).expect("a listed preset");
+        let path = dir.join(format!("rugged-{name}.png"));
+        render_to_file(
+            model.surface(0)?.as_ref(),
+            &Region::new(0.0, 0.0, 512, 512),
+            &path,
+            Some(&model.material()),
+            None,
+            &mut |_| {},
+        )?;
+        step(
+            &format!(
+                "seed 001 preset {name}, 512×512, shaded as {} (8-bit PNG)",
+                model.material
+            ),
+            path,
+            t,
+        );
+    }
     Ok(steps)
 }

@@ -40,6 +40,7 @@ pub mod raster;
 pub mod render;
 pub mod sandblast;
 pub mod shade;
+pub mod source;
 pub mod stats;
 pub mod stream;
 pub mod view;

@@ -19,6 +19,8 @@ use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::render::{checked_size, render_to_file};
 use surftile::sandblast::Sandblast;
+use surftile::shade::ShadeOptions;
+use surftile::source::SourceSpec;
 use surftile::stats::compare;
 use surftile::stream::Metric;
 use surftile::stream::{Region, Surface};
@@ -61,6 +63,101 @@ impl Window {
         .with_step(step);
         region.validate()?;
         Ok(region)
+    }
+}
+
+/// Shading flags of `render` and `mill` (seed 001, eqs. (1)–(4)).
+#[derive(Args)]
+struct ShadeArgs {
+    /// Write a Phong-shaded 8-bit PNG instead of heights.
+    #[arg(long)]
+    shade: bool,
+    /// Material preset: rock (ambient + diffuse + specular), china (no specular) or
+    /// casting (no diffuse); default: the model's own, else rock-like defaults.
+    #[arg(long)]
+    material: Option<String>,
+    /// Direction toward the light, "x,y,z" (x right, y down the image, z up out of the
+    /// surface); default "-1,-1,1.414" (upper left, 45° up).
+    #[arg(long, allow_hyphen_values = true)]
+    light: Option<String>,
+    /// Direction toward the viewer, "x,y,z"; default "0,0,1" (straight down).
+    #[arg(long, allow_hyphen_values = true)]
+    view: Option<String>,
+    /// Specular exponent n of (H·N)ⁿ.
+    #[arg(long, allow_negative_numbers = true)]
+    shininess: Option<f32>,
+    /// Slope exaggeration, per surface pixel; default: the one that makes the rms slope
+    /// 0.5.
+    #[arg(long, allow_negative_numbers = true)]
+    exaggeration: Option<f32>,
+}
+
+impl ShadeArgs {
+    /// The shading asked for, starting from `material` (the source's), or `None` for
+    /// heights. Shading flags without `--shade` are refused rather than ignored.
+    fn options(&self, material: ShadeOptions) -> Result<Option<ShadeOptions>> {
+        if !self.shade {
+            let given = [
+                ("material", self.material.is_some()),
+                ("light", self.light.is_some()),
+                ("view", self.view.is_some()),
+                ("shininess", self.shininess.is_some()),
+                ("exaggeration", self.exaggeration.is_some()),
+            ];
+            if let Some((name, _)) = given.iter().find(|(_, g)| *g) {
+                return Err(Error::param(
+                    *name,
+                    "given without --shade",
+                    "--shade as well (shading flags only apply to a shaded render)",
+                ));
+            }
+            return Ok(None);
+        }
+        let mut o = match &self.material {
+            Some(m) => ShadeOptions::preset(m)?,
+            None => material,
+        };
+        if let Some(l) = &self.light {
+            o.light = parse_direction("light", l)?;
+        }
+        if let Some(v) = &self.view {
+            o.view = parse_direction("view", v)?;
+        }
+        if let Some(n) = self.shininess {
+            o.shininess = n;
+        }
+        if let Some(e) = self.exaggeration {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(Error::param(
+                    "exaggeration",
+                    e,
+                    "a positive, finite slope factor",
+                ));
+            }
+            o.exaggeration = Some(e);
+        }
+        o.validate()?;
+        Ok(Some(o))
+    }
+}
+
+/// A direction "x,y,z" (three finite numbers; its length is checked by
+/// [`ShadeOptions::validate`]).
+fn parse_direction(name: &str, text: &str) -> Result<glam::Vec3> {
+    let parts: Vec<f32> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| Error::param(name, text, "three numbers \"x,y,z\", e.g. \"-1,-1,1.414\""))?;
+    match parts[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => {
+            Ok(glam::Vec3::new(x, y, z))
+        }
+        _ => Err(Error::param(
+            name,
+            text,
+            "three finite numbers \"x,y,z\", e.g. \"-1,-1,1.414\"",
+        )),
     }
 }
 
@@ -188,24 +285,29 @@ enum Command {
         #[arg(long)]
         raw_shape: Option<String>,
     },
-    /// Render a region of the infinite surface to .png (16-bit), .tif (f32) or .npy (f32).
+    /// Render a region of an endless surface to .png (16-bit), .tif (f32) or .npy (f32),
+    /// or shaded to an 8-bit .png: a bank, a milling or seed 001 model .toml, or a preset
+    /// name (rock, china, casting, cells-convex, cells-concave, parallel-d4-ae05, …).
     Render {
-        /// Bank file.
-        bank: PathBuf,
+        /// Bank file, milling or model configuration (.toml), or preset name.
+        source: PathBuf,
         #[command(flatten)]
         window: Window,
         /// Distance between samples in pixels; above 1 reads prefiltered mip levels.
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         step: f64,
-        /// Placement seed (which tile goes where).
+        /// Placement seed (which tile goes where; a model's or milling's random draws).
         #[arg(long, default_value_t = 0)]
         seed: u32,
         /// Output file.
         #[arg(long)]
         out: PathBuf,
-        /// Write a Phong-shaded 8-bit PNG instead of heights.
-        #[arg(long)]
-        shade: bool,
+        #[command(flatten)]
+        shading: ShadeArgs,
+        /// Pixel spacing of a milling source, in µm (banks carry their own; models are
+        /// in pixels).
+        #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
+        spacing: f64,
         /// Fill on the GPU (any Vulkan, Metal or DX12 adapter, software ones included);
         /// without an adapter, or for a rule the GPU does not run, fills on the CPU with
         /// a notice.
@@ -231,9 +333,8 @@ enum Command {
         /// Output file.
         #[arg(long)]
         out: PathBuf,
-        /// Write a Phong-shaded 8-bit PNG instead of heights.
-        #[arg(long)]
-        shade: bool,
+        #[command(flatten)]
+        shading: ShadeArgs,
     },
     /// Scroll and zoom an endless surface in a window (or headless, for scripts and
     /// screenshots): a bank, a milling .toml or a milling preset name.
@@ -289,10 +390,10 @@ enum Command {
         #[arg(long)]
         direct: bool,
     },
-    /// Print the height at one point.
+    /// Print the height at one point of a bank, a milling or model .toml, or a preset.
     Sample {
-        /// Bank file.
-        bank: PathBuf,
+        /// Bank file, milling or model configuration (.toml), or preset name.
+        source: PathBuf,
         /// x in surface pixels.
         #[arg(allow_negative_numbers = true)]
         x: f64,
@@ -302,6 +403,9 @@ enum Command {
         /// Placement seed.
         #[arg(long, default_value_t = 0)]
         seed: u32,
+        /// Pixel spacing of a milling source, in µm.
+        #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
+        spacing: f64,
     },
     /// Describe a bank.
     Info {
@@ -459,10 +563,10 @@ fn check_output(path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn load_surface(bank: &Path, seed: u32) -> Result<(Bank, Box<dyn Surface>)> {
-    let bank = Bank::read(bank)?;
-    let surface = surftile::stream::open(&bank, seed)?;
-    Ok((bank, surface))
+fn load_surface(source: &Path, seed: u32, spacing: f64) -> Result<(SourceSpec, Box<dyn Surface>)> {
+    let spec = SourceSpec::load(source, spacing)?;
+    let surface = spec.surface(seed)?;
+    Ok((spec, surface))
 }
 
 /// `--lattice "ux,uy;vx,vy"`: two integer vectors.
@@ -741,24 +845,31 @@ fn run(command: Command) -> Result<()> {
             Ok(())
         }
         Command::Render {
-            bank,
+            source,
             window,
             step,
             seed,
             out,
-            shade,
+            shading,
+            spacing,
             gpu,
         } => {
             let region = window.region(step)?;
             check_output(&out)?;
-            let (bank, mut surface) = load_surface(&bank, seed)?;
+            let (spec, mut surface) = load_surface(&source, seed, spacing)?;
+            let shading = shading.options(spec.material())?;
             if gpu {
-                match surftile::gpu::GpuFilled::open(&bank, seed) {
-                    Ok(g) => {
-                        eprintln!("render: filling on the GPU, {}", g.gpu().describe());
-                        surface = Box::new(g);
-                    }
-                    Err(e) => eprintln!("render: {e}; filling on the CPU instead"),
+                match spec.bank() {
+                    Some(bank) => match surftile::gpu::GpuFilled::open(bank, seed) {
+                        Ok(g) => {
+                            eprintln!("render: filling on the GPU, {}", g.gpu().describe());
+                            surface = Box::new(g);
+                        }
+                        Err(e) => eprintln!("render: {e}; filling on the CPU instead"),
+                    },
+                    None => eprintln!(
+                        "render: --gpu runs banks only; filling this source on the CPU instead"
+                    ),
                 }
             }
             let start = Instant::now();
@@ -766,8 +877,8 @@ fn run(command: Command) -> Result<()> {
                 surface.as_ref(),
                 &region,
                 &out,
-                shade,
-                bank.header.spacing_um,
+                shading.as_ref(),
+                spec.spacing_um(),
                 &mut progress_reporter("render"),
             )?;
             eprintln!(
@@ -838,10 +949,11 @@ fn run(command: Command) -> Result<()> {
             step,
             seed,
             out,
-            shade,
+            shading,
         } => {
             let region = window.region(step)?;
             check_output(&out)?;
+            let shading = shading.options(ShadeOptions::default())?;
             let (config, base) = MillingConfig::load(&config)?;
             let start = Instant::now();
             let surface =
@@ -850,7 +962,7 @@ fn run(command: Command) -> Result<()> {
                 &surface,
                 &region,
                 &out,
-                shade,
+                shading.as_ref(),
                 Some(spacing),
                 &mut progress_reporter("mill"),
             )?;
@@ -903,9 +1015,15 @@ fn run(command: Command) -> Result<()> {
             };
             surftile::view::run(&source, options)
         }
-        Command::Sample { bank, x, y, seed } => {
+        Command::Sample {
+            source,
+            x,
+            y,
+            seed,
+            spacing,
+        } => {
             let (x, y) = (coordinate("x", x)?, coordinate("y", y)?);
-            let (_, surface) = load_surface(&bank, seed)?;
+            let (_, surface) = load_surface(&source, seed, spacing)?;
             let mut v = vec![0.0f32; surface.channels()];
             surface.sample(x, y, &mut v);
             let text: Vec<String> = v.iter().map(|v| format!("{v}")).collect();

@@ -55,17 +55,19 @@ pub fn render_region(
 }
 
 /// Renders `region` to `out`: heights as 16-bit PNG, f32 TIFF or f32 `.npy` by
-/// extension; with `shaded`, an 8-bit Phong-shaded PNG of channel 0 instead.
+/// extension; with `shading`, an 8-bit Phong-shaded PNG of channel 0 instead (an
+/// explicit exaggeration there is per surface pixel, so it is divided by the step).
 pub fn render_to_file(
     surface: &dyn Surface,
     region: &Region,
     out: &Path,
-    shaded: bool,
+    shading: Option<&ShadeOptions>,
     spacing_um: Option<f64>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
     let format = Format::from_path(out)?;
-    if shaded {
+    if let Some(options) = shading {
+        options.validate()?;
         if format != Format::Png {
             return Err(Error::param(
                 "out",
@@ -82,7 +84,11 @@ pub fn render_to_file(
             ..*region
         };
         let heights = render_region(surface, &grown, progress)?.channel(0);
-        let pixels = shade(&heights, &ShadeOptions::default());
+        let options = ShadeOptions {
+            exaggeration: options.exaggeration.map(|e| e * region.step as f32),
+            ..*options
+        };
+        let pixels = shade(&heights, &options);
         return write_png8(out, region.width, region.height, 1, &pixels);
     }
     let raster = render_region(surface, region, progress)?;

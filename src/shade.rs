@@ -44,7 +44,9 @@ impl Default for ShadeOptions {
 impl ShadeOptions {
     /// The material presets of seed 001: `rock` (ambient, diffuse and specular: "powder
     /// like and crystal particles", Plate 1), `china` (unglazed china: no specular,
-    /// Plate 2) and `casting` (aluminium casting: no diffuse, shiny, Plate 3).
+    /// Plate 2) and `casting` (aluminium casting: no diffuse, shiny, Plate 3; its light
+    /// stands 20° off the view, so flat patches catch the highlight, as on a part
+    /// held under a lamp).
     pub fn preset(name: &str) -> Result<ShadeOptions> {
         let d = ShadeOptions::default();
         Ok(match name {
@@ -60,6 +62,7 @@ impl ShadeOptions {
                 ..d
             },
             "casting" => ShadeOptions {
+                light: Vec3::new(-0.25, -0.25, 1.0),
                 diffuse: 0.0,
                 specular: 0.9,
                 shininess: 40.0,

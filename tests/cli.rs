@@ -302,6 +302,11 @@ fn demo_writes_the_gallery() {
         "milling-parallel.png",
         "milling-parallel-shaded.png",
         "milling-spiral-shaded.png",
+        "rugged-rock.png",
+        "rugged-china.png",
+        "rugged-casting.png",
+        "rugged-cells-convex.png",
+        "rugged-cells-concave.png",
     ] {
         let p = dir.path().join("surftile-demo").join(f);
         assert!(
@@ -612,4 +617,150 @@ fn rsgf_from_the_command_line() {
         ],
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
+}
+
+/// The seed 001 presets render from the command line exactly as the library draws them:
+/// heights bit for bit, the shaded PNG byte for byte (with each preset's material), and
+/// `sample` prints the same height.
+#[test]
+fn model_presets_render_and_shade_as_the_library_does() {
+    use surftile::models::rugged::ModelConfig;
+    use surftile::shade::shade;
+    use surftile::stream::Region;
+    let dir = tempfile::tempdir().unwrap();
+    let args = |name: &str, out: &str, extra: &[&str]| {
+        let mut a: Vec<String> = [
+            "render", name, "--x", "-37", "--y", "11", "--w", "64", "--h", "48", "--seed", "5",
+            "--out", out,
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    for name in ModelConfig::preset_names() {
+        let model = ModelConfig::preset(name).unwrap();
+        let surface = model.surface(5).unwrap();
+        let a = args(name, "h.npy", &[]);
+        let r = surftile(
+            dir.path(),
+            &a.iter().map(|s| s.as_str()).collect::<Vec<_>>(),
+        );
+        assert_eq!(r.code, 0, "{name}: {}", r.stderr);
+        let got = surftile::io::read_image(&dir.path().join("h.npy"), &Default::default())
+            .unwrap()
+            .raster;
+        let mut want = vec![0.0f32; 64 * 48];
+        surface
+            .fill(&Region::new(-37.0, 11.0, 64, 48), &mut want)
+            .unwrap();
+        assert_eq!((got.width, got.height), (64, 48));
+        assert!(
+            got.data
+                .iter()
+                .zip(&want)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{name}: the CLI's heights differ from the library's"
+        );
+
+        let a = args(name, "s.png", &["--shade"]);
+        let r = surftile(
+            dir.path(),
+            &a.iter().map(|s| s.as_str()).collect::<Vec<_>>(),
+        );
+        assert_eq!(r.code, 0, "{name}: {}", r.stderr);
+        let (pw, ph, colour, png) = common::png8(&dir.path().join("s.png"));
+        assert_eq!((pw, ph, colour), (64, 48, png::ColorType::Grayscale));
+        let mut margin = vec![0.0f32; 66 * 50];
+        surface
+            .fill(&Region::new(-38.0, 10.0, 66, 50), &mut margin)
+            .unwrap();
+        let heights = Raster::from_vec(66, 50, 1, margin).unwrap();
+        assert_eq!(
+            png,
+            shade(&heights, &model.material()),
+            "{name}: the shaded PNG is not the library's shading with the {} material",
+            model.material
+        );
+
+        let r = surftile(dir.path(), &["sample", name, "3.5", "-1e9", "--seed", "5"]);
+        assert_eq!(r.code, 0, "{name}: {}", r.stderr);
+        let printed: f32 = r.stdout.trim().parse().unwrap();
+        assert_eq!(printed, surface.height(3.5, -1e9), "{name}");
+    }
+    // Materials differ: the same heights shaded as china (no specular) and casting (no
+    // diffuse) are not the same image.
+    let mut images = Vec::new();
+    for m in ["china", "casting"] {
+        let a = args("rock", "m.png", &["--shade", "--material", m]);
+        let r = surftile(
+            dir.path(),
+            &a.iter().map(|s| s.as_str()).collect::<Vec<_>>(),
+        );
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        images.push(std::fs::read(dir.path().join("m.png")).unwrap());
+    }
+    assert_ne!(images[0], images[1]);
+}
+
+/// A model `.toml` renders with its own parameters; bad models, shading flags and light
+/// directions are one-line errors that leave nothing behind.
+#[test]
+fn model_files_and_bad_shading_are_handled() {
+    use surftile::models::fractal::{FractalKind, FractalParams, FractalSurface};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    std::fs::write(
+        p.join("m.toml"),
+        "material = \"china\"\n[fractal]\nh = 0.3\nlevels = 6\nkind = \"casting\"\n",
+    )
+    .unwrap();
+    let r = surftile(p, &["sample", "m.toml", "-12.25", "40", "--seed", "2"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let want = FractalSurface::new(
+        FractalParams {
+            h: 0.3,
+            levels: 6,
+            kind: FractalKind::Casting,
+            amplitude: 1.0,
+        },
+        2,
+    )
+    .unwrap()
+    .height(-12.25, 40.0);
+    assert_eq!(r.stdout.trim().parse::<f32>().unwrap(), want);
+
+    let bad = [
+        ("h15.toml", "[fractal]\nh = 1.5\n", "(0, 1]"),
+        ("h0.toml", "[fractal]\nh = 0\n", "does not converge"),
+        ("d0.toml", "[cells]\ndensity = 0.0\n", "density"),
+        ("dn.toml", "[cells]\ndensity = -0.01\n", "density"),
+        ("two.toml", "[fractal]\n[cells]\n", "exactly one"),
+        ("typo.toml", "[fractal]\nhh = 0.5\n", "hh"),
+    ];
+    for (file, text, needle) in bad {
+        std::fs::write(p.join(file), text).unwrap();
+        let r = render(p, file, ("8", "8"), "o.npy", &[]);
+        assert_clean_failure(p, &r, needle, "o.npy");
+    }
+    let shading = [
+        (&["--shade", "--light", "0,0,0"][..], "light"),
+        (&["--shade", "--view", "0,0,0"][..], "view"),
+        (&["--shade", "--light", "1,2"][..], "x,y,z"),
+        (&["--shade", "--light", "1,nan,2"][..], "finite"),
+        (
+            &["--shade", "--material", "velvet"][..],
+            "rock, china, casting",
+        ),
+        (&["--shade", "--shininess", "-3"][..], "shininess"),
+        (&["--shade", "--exaggeration", "0"][..], "exaggeration"),
+        (&["--light", "1,1,1"][..], "--shade"),
+    ];
+    for (extra, needle) in shading {
+        let r = render(p, "rock", ("8", "8"), "o.png", extra);
+        assert_clean_failure(p, &r, needle, "o.png");
+    }
+    let r = render(p, "granite", ("8", "8"), "o.npy", &[]);
+    assert_clean_failure(p, &r, "cells-convex", "o.npy");
 }

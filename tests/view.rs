@@ -96,15 +96,9 @@ fn xvfb() -> Option<Xvfb> {
 
 /// Width, height and RGBA bytes of an 8-bit RGBA PNG.
 fn rgba_png(path: &Path) -> (usize, usize, Vec<u8>) {
-    let bytes = std::fs::read(path).unwrap();
-    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
-        .read_info()
-        .unwrap();
-    let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!(info.color_type, png::ColorType::Rgba);
-    buf.truncate(info.buffer_size());
-    (info.width as usize, info.height as usize, buf)
+    let (w, h, colour, buf) = common::png8(path);
+    assert_eq!(colour, png::ColorType::Rgba);
+    (w, h, buf)
 }
 
 fn view(dir: &Path, args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
@@ -306,5 +300,86 @@ fn bad_view_arguments_are_one_line_errors() {
             .collect();
         assert_eq!(lines.len(), 1, "{args:?}: {err}");
         assert!(lines[0].contains(needle), "{args:?}: {err}");
+    }
+}
+
+/// The shaded view is the WGSL twin of `shade()` (`shaders/shade.wgsl`'s
+/// `normal_from_gradient`, `half_vector`, `reflectance`): a headless screenshot of each
+/// seed 001 model preset, in the shaded view with the preset's material and light,
+/// matches the CPU shading of the same heights (same exaggeration, the viewer's
+/// rms-slope one) within 2 grey levels, with a mean difference under 0.1 level, and is
+/// not blank.
+#[test]
+fn the_shaded_view_of_a_model_matches_the_cpu_shading() {
+    use surftile::models::rugged::ModelConfig;
+    use surftile::shade::{ShadeOptions, shade};
+    if let Err(e) = Gpu::new() {
+        assert!(!gpu_required(), "SURFTILE_REQUIRE_GPU is set, but {e}");
+        eprintln!("skipping the shaded view check: {e}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (96usize, 64usize);
+    for name in ModelConfig::preset_names() {
+        let (ok, err) = view(
+            dir.path(),
+            &[
+                name,
+                "--headless",
+                "--shaded",
+                "--width",
+                "96",
+                "--height",
+                "64",
+                "--x",
+                "-40",
+                "--y",
+                "20",
+                "--seed",
+                "3",
+                "--script",
+                "settle",
+                "--screenshot",
+                "shot.png",
+            ],
+            &[],
+        );
+        assert!(ok, "{name}: {err}");
+        let (sw, sh, shot) = rgba_png(&dir.path().join("shot.png"));
+        assert_eq!((sw, sh), (w, h));
+        let model = ModelConfig::preset(name).unwrap();
+        let cpu = model.surface(3).unwrap();
+        let (_, exaggeration) = surftile::view::display_scales(cpu.as_ref()).unwrap();
+        let mut margin = vec![0.0f32; (w + 2) * (h + 2)];
+        cpu.fill(&Region::new(-41.0, 19.0, w + 2, h + 2), &mut margin)
+            .unwrap();
+        let heights = surftile::Raster::from_vec(w + 2, h + 2, 1, margin).unwrap();
+        let want = shade(
+            &heights,
+            &ShadeOptions {
+                exaggeration: Some(exaggeration),
+                ..model.material()
+            },
+        );
+        let (mut worst, mut total, mut sum, mut sq) = (0i32, 0i64, 0.0f64, 0.0f64);
+        for (i, &v) in want.iter().enumerate() {
+            let got = shot[i * 4] as i32;
+            let d = (got - v as i32).abs();
+            worst = worst.max(d);
+            total += d as i64;
+            sum += got as f64;
+            sq += (got * got) as f64;
+        }
+        let n = want.len() as f64;
+        let sd = (sq / n - (sum / n).powi(2)).sqrt();
+        let mean = total as f64 / n;
+        eprintln!(
+            "{name}: shaded view vs CPU: max {worst}, mean {mean:.3} grey levels, sd {sd:.1}"
+        );
+        assert!(sd > 10.0, "{name}: a blank frame (sd {sd:.1})");
+        assert!(
+            worst <= 2 && mean < 0.1,
+            "{name}: max {worst}, mean {mean:.3}"
+        );
     }
 }

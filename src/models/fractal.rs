@@ -50,8 +50,10 @@ impl std::fmt::Display for FractalKind {
     }
 }
 
-/// Parameters of a midpoint-displacement surface.
+/// Parameters of a midpoint-displacement surface (in a model `.toml`, the `[fractal]`
+/// table; keys left out keep their defaults).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct FractalParams {
     /// Self-similarity h ∈ (0, 1] (eq. 6): each level's displacements are (½)ʰ of the
     /// level before. Small h: rough; h = 1: smoothest.

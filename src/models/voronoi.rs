@@ -12,10 +12,10 @@
 //!   the nearest centre, so both have the Voronoi diagram as region boundaries ("the
 //!   perpendicular bisectors between the neighbouring center points"). Beyond R from
 //!   every centre the surface is 0.
-//! - **Per-region texture** (Plates 5–6): none, a polar sinusoid a·sin(ω·d + φ) of the
-//!   distance d to the region's centre, or the modified sinusoid a·sin(ω·d + φ)·cos(m·θ)
+//! - **Per-region texture** (Plates 4–6): none, a polar sinusoid a·sin(ω·d + φ) of the
+//!   distance d to the region's centre, the modified sinusoid a·sin(ω·d + φ)·cos(m·θ)
 //!   (θ the polar angle about the centre), with φ and the angle offset hashed per
-//!   region.
+//!   region, or a midpoint-displacement fractal read at an offset hashed per region.
 //! - **Per-region colour** (Plate 7) comes from a second, independent partition
 //!   ([`VoronoiSurface::colour`]), so colour regions do not follow the roughness regions.
 //!
@@ -26,6 +26,7 @@
 
 use crate::error::{Error, Result};
 use crate::hash::{hash_cell, pcg4d};
+use crate::models::fractal::{FractalKind, FractalParams, FractalSurface};
 use crate::stream::{Surface, in_range};
 
 /// Which envelope of the hemispheres.
@@ -60,10 +61,43 @@ pub enum RegionTexture {
         /// Petals m.
         petals: u32,
     },
+    /// A midpoint-displacement fractal ([Procedure 1], eq. 5) of its own in each
+    /// region: one endless fractal, read in every region at an offset hashed from the
+    /// region, so neighbouring regions show unrelated relief (Plate 4's "rugged
+    /// textures").
+    Fractal {
+        /// S⁽⁰⁾, the coarsest displacement scale, in height units.
+        amplitude: f64,
+        /// Self-similarity h ∈ (0, 1].
+        h: f64,
+        /// Levels L (the fractal's coarsest lattice is 2^L pixels).
+        levels: u32,
+    },
 }
 
-/// Parameters of a region-division surface.
+impl RegionTexture {
+    /// The fractal of a [`RegionTexture::Fractal`].
+    fn fractal_params(&self) -> Option<FractalParams> {
+        match *self {
+            RegionTexture::Fractal {
+                amplitude,
+                h,
+                levels,
+            } => Some(FractalParams {
+                h,
+                levels,
+                kind: FractalKind::Rock,
+                amplitude,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// Parameters of a region-division surface (in a model `.toml`, the `[cells]` table;
+/// keys left out keep their defaults).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct VoronoiParams {
     /// Centres per pixel² (> 0); the mean centre spacing is 1/√density.
     pub density: f64,
@@ -130,6 +164,22 @@ impl VoronoiParams {
                 wavelength_px,
                 ..
             } => wave(amplitude, wavelength_px),
+            RegionTexture::Fractal { .. } => self
+                .texture
+                .fractal_params()
+                .map_or(Ok(()), |p| p.validate())
+                .map_err(|e| match e {
+                    Error::InvalidParameter {
+                        name,
+                        value,
+                        expected,
+                    } => Error::InvalidParameter {
+                        name: format!("texture.{name}"),
+                        value,
+                        expected,
+                    },
+                    e => e,
+                }),
         }
     }
 }
@@ -153,6 +203,8 @@ pub struct VoronoiSurface {
     cell: f64,
     inv_cell: f64,
     radius_px: f64,
+    /// The region texture's fractal, for [`RegionTexture::Fractal`].
+    fractal: Option<std::sync::Arc<FractalSurface>>,
 }
 
 impl VoronoiSurface {
@@ -166,6 +218,11 @@ impl VoronoiSurface {
             cell,
             inv_cell: 1.0 / cell,
             radius_px: params.radius * cell,
+            fractal: params
+                .texture
+                .fractal_params()
+                .map(|p| FractalSurface::new(p, seed ^ 0xF4AC_7A15).map(std::sync::Arc::new))
+                .transpose()?,
         })
     }
 
@@ -271,6 +328,16 @@ impl VoronoiSurface {
                     * (std::f64::consts::TAU * n.d2.sqrt() / wavelength_px + phase).sin()
                     * (petals as f64 * theta).cos()
             }
+            RegionTexture::Fractal { .. } => match &self.fractal {
+                Some(f) => {
+                    // An integer offset keeps the fractal on its own lattice: the
+                    // region reads an unrelated, equally lazy patch of it.
+                    let o = hash_cell(self.seed ^ n.id.2, n.id.0, n.id.1, 0xF4AC);
+                    let shift = |w: u32| ((w >> 4) as i64 - (1 << 27)) as f64;
+                    f.height(x + shift(o[0]), y + shift(o[1])) as f64
+                }
+                None => 0.0,
+            },
         };
         base + texture
     }

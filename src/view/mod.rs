@@ -1,17 +1,19 @@
 //! `surftile view`: an endless, zoomable view of any source, in a window (winit + wgpu)
 //! or headless.
 //!
-//! - **Sources.** A bank (`.bank`), a milling configuration (`.toml`) or a milling
-//!   preset name. On a hardware GPU, banks are filled on the GPU every frame
+//! - **Sources** ([`SourceSpec`]): a bank (`.bank`), a milling configuration (`.toml`)
+//!   or preset name, or a seed 001 model (`.toml`, or `rock`, `china`, `casting`,
+//!   `cells-convex`, `cells-concave`). On a hardware GPU, banks are filled on the GPU every frame
 //!   ([`GpuSurface`]). Milling models, and banks on a software adapter (where a frame
 //!   costs ~100 ms), go through the [`PageStreamer`] with pages filled on the GPU (a
 //!   zoomed-out milling frame can cost seconds); sources the GPU does not run
-//!   (RSGF) go through it with pages filled on the CPU. The streamer's workers fill
+//!   (RSGF, Wang, seed 001 models) go through it with pages filled on the CPU. The streamer's workers fill
 //!   pages while the render loop draws what is resident (a coarser level, or grey, where
 //!   a page is still coming): no frame waits for a page.
 //! - **Display.** `shaders/shade.wgsl` draws the heights as a grey ramp (the source's
 //!   mean ± 3σ, from a 256² sample at the origin) or Phong-shaded (seed 001,
-//!   eqs. (1)–(4)). Colour banks show their first channel.
+//!   eqs. (1)–(4)) with the source's material (a model's, else the default). Colour
+//!   banks show their first channel.
 //! - **Controls.** Drag or arrow keys pan; the wheel (or `+`/`-`) zooms about the
 //!   cursor, through the mip levels; `s`/`S` next/previous seed; `h` height or shaded
 //!   view; `l`/`k` light azimuth/elevation; `m` mask view (no source has masks yet);
@@ -29,10 +31,9 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::bank::{Bank, Rule};
+use crate::bank::Rule;
 use crate::error::{Error, Result};
 use crate::gpu::{Gpu, GpuSurface};
-use crate::models::milling::{MillingConfig, MillingSurface};
 use crate::stream::{Page, PageKey, PageStreamer, Region, Surface, View, default_threads, open};
 use script::Step;
 
@@ -148,57 +149,7 @@ const MAX_POSITION: f64 = 1e15;
 /// Page side of the streamer, in samples.
 const PAGE: usize = 256;
 
-/// What the viewer was asked to show: kept to reopen it under another seed.
-pub enum SourceSpec {
-    /// A bank file.
-    Bank(Box<Bank>),
-    /// A milling model.
-    Milling {
-        /// The configuration.
-        config: Box<MillingConfig>,
-        /// Folder of relative paths in it.
-        base: Option<PathBuf>,
-        /// Pixel spacing (µm).
-        spacing_um: f64,
-    },
-}
-
-impl SourceSpec {
-    /// A bank file (by content), a milling `.toml` or a preset name.
-    pub fn load(arg: &Path, spacing_um: f64) -> Result<SourceSpec> {
-        let is_toml = arg.extension().is_some_and(|e| e == "toml");
-        if arg.exists() && !is_toml {
-            return Ok(SourceSpec::Bank(Box::new(Bank::read(arg)?)));
-        }
-        let (config, base) = MillingConfig::load(arg).map_err(|e| match e {
-            Error::InvalidParameter { .. } if !arg.exists() => Error::param(
-                "source",
-                arg.display(),
-                "a bank file, a milling .toml or a milling preset name (e.g. parallel-d4-ae05)",
-            ),
-            e => e,
-        })?;
-        Ok(SourceSpec::Milling {
-            config: Box::new(config),
-            base,
-            spacing_um,
-        })
-    }
-
-    fn milling(&self, seed: u32) -> Result<Option<MillingSurface>> {
-        match self {
-            SourceSpec::Bank(_) => Ok(None),
-            SourceSpec::Milling {
-                config,
-                base,
-                spacing_um,
-            } => Ok(Some(
-                MillingSurface::new(config, *spacing_um, seed)?
-                    .adapt_from_config(base.as_deref())?,
-            )),
-        }
-    }
-}
+pub use crate::source::SourceSpec;
 
 /// How a source's frames are filled.
 enum Fill {
@@ -213,6 +164,8 @@ pub struct Source {
     range: (f32, f32),
     /// Slope exaggeration per surface pixel for the shaded view.
     exaggeration: f32,
+    /// Weights of the shaded view (a model's material).
+    material: crate::shade::ShadeOptions,
 }
 
 impl Source {
@@ -231,10 +184,16 @@ impl Source {
         // the GPU by the streamer's workers, on a device of their own, so the render
         // loop's queue never waits behind a page's dispatch.
         // RSGF and Wang banks have no GPU twin: CPU pages.
-        let on_gpu = !matches!(spec, SourceSpec::Bank(b) if matches!(b.header.rule, Rule::Rsgf | Rule::Wang));
+        // Seed 001 models have no GPU twin either.
+        let on_gpu = match spec {
+            SourceSpec::Bank(b) => !matches!(b.header.rule, Rule::Rsgf | Rule::Wang),
+            SourceSpec::Milling { .. } => true,
+            SourceSpec::Model(_) => false,
+        };
         let milling = match spec {
             SourceSpec::Milling { .. } => true,
             SourceSpec::Bank(b) => b.header.rule == Rule::Milling,
+            SourceSpec::Model(_) => false,
         };
         let paged = milling || (gpu.info.device_type == wgpu::DeviceType::Cpu && !direct);
         let fill_gpu = if on_gpu && paged {
@@ -254,6 +213,7 @@ impl Source {
                 let g = GpuSurface::milling(&fill_gpu.device, m.clone())?;
                 (Arc::new(m), Some(g))
             }
+            SourceSpec::Model(m) => (Arc::from(m.surface(seed)?), None),
         };
         let fill = match gpu_surface {
             Some(g) if paged => {
@@ -272,6 +232,7 @@ impl Source {
             fill,
             range,
             exaggeration,
+            material: spec.material(),
         })
     }
 
@@ -766,6 +727,12 @@ impl Session {
             options.direct,
         )?;
         let renderer = Renderer::new(&gpu.device, options.width, options.height);
+        // The material's light (225° azimuth, 45° up by default) as azimuth/elevation.
+        let l = source.material.light.normalize().as_dvec3();
+        let light = (
+            l.y.atan2(l.x).to_degrees().rem_euclid(360.0),
+            l.z.clamp(0.0, 1.0).asin().to_degrees(),
+        );
         Ok(Session {
             gpu,
             spec,
@@ -780,7 +747,7 @@ impl Session {
             } else {
                 Mode::Height
             },
-            light: (225.0, 45.0),
+            light,
             step: 0,
             frames: 0,
             times: FrameTimes::default(),
@@ -977,7 +944,7 @@ impl Session {
             el.sin() as f32,
         )
         .normalize();
-        let o = crate::shade::ShadeOptions::default();
+        let o = self.source.material;
         let half = crate::shade::half_vector(l, o.view.normalize());
         let params = ShadeParams {
             width: w,

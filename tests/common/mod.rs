@@ -53,3 +53,22 @@ pub fn near_regular(w: usize, h: usize, u: (i64, i64), v: (i64, i64), seed: u64)
         .collect();
     Raster::from_vec(w, h, 1, data).unwrap()
 }
+
+/// The pixels of an 8-bit PNG: (width, height, colour type, bytes).
+#[allow(dead_code)]
+pub fn png8(path: &std::path::Path) -> (usize, usize, png::ColorType, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap();
+    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
+        .read_info()
+        .unwrap();
+    let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.bit_depth, png::BitDepth::Eight);
+    buf.truncate(info.buffer_size());
+    (
+        info.width as usize,
+        info.height as usize,
+        info.color_type,
+        buf,
+    )
+}

@@ -402,13 +402,8 @@ pub const PRESETS: [(&str, &str); 12] = [
 impl MillingConfig {
     /// Parses a configuration (`what` names it in errors) and validates it.
     pub fn from_toml(text: &str, what: &str) -> Result<MillingConfig> {
-        let config: MillingConfig = toml::from_str(text).map_err(|e| {
-            let line = e
-                .span()
-                .map(|s| format!("line {}: ", text[..s.start].lines().count().max(1)))
-                .unwrap_or_default();
-            Error::decode(what, format!("{line}{}", e.message().trim()))
-        })?;
+        let config: MillingConfig =
+            toml::from_str(text).map_err(|e| crate::models::toml_error(text, what, e))?;
         config.validate()?;
         Ok(config)
     }
