@@ -6,7 +6,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::{Format, write_heights, write_png8};
 use crate::raster::Raster;
-use crate::shade::{ShadeOptions, shade};
+use crate::shade::{ShadeOptions, shade, shade_slopes};
 use crate::stream::{Region, Surface};
 
 /// Largest region one render may hold in memory: 2²⁸ samples (1 GiB of f32).
@@ -54,9 +54,27 @@ pub fn render_region(
     Raster::from_vec(region.width, region.height, c, data)
 }
 
+/// A surface's analytic gradient as a two-channel surface of slopes per sample
+/// (∂h/∂x·step, ∂h/∂y·step), so that it fills in parallel like any other.
+struct Slopes<'a>(&'a dyn Surface);
+
+impl Surface for Slopes<'_> {
+    fn channels(&self) -> usize {
+        2
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        let g = self.0.gradient(x, y).unwrap_or([f64::NAN; 2]);
+        out[0] = (g[0] * footprint) as f32;
+        out[1] = (g[1] * footprint) as f32;
+    }
+}
+
 /// Renders `region` to `out`: heights as 16-bit PNG, f32 TIFF or f32 `.npy` by
-/// extension; with `shading`, an 8-bit Phong-shaded PNG of channel 0 instead (an
-/// explicit exaggeration there is per surface pixel, so it is divided by the step).
+/// extension; with `shading`, an 8-bit Phong-shaded PNG of channel 0 instead, its
+/// normals from the surface's analytic gradient where it has one, else from central
+/// differences of the heights (an explicit exaggeration is per surface pixel, so it is
+/// divided by the step).
 pub fn render_to_file(
     surface: &dyn Surface,
     region: &Region,
@@ -75,20 +93,27 @@ pub fn render_to_file(
                 "a .png file with --shade (the shading is an 8-bit image)",
             ));
         }
-        // One sample of margin on every side for the central differences.
-        let grown = Region {
-            col0: region.col0 - 1,
-            row0: region.row0 - 1,
-            width: region.width + 2,
-            height: region.height + 2,
-            ..*region
-        };
-        let heights = render_region(surface, &grown, progress)?.channel(0);
         let options = ShadeOptions {
-            exaggeration: options.exaggeration.map(|e| e * region.step as f32),
+            exaggeration: options.exaggeration.map(|e| e / region.step as f32),
             ..*options
         };
-        let pixels = shade(&heights, &options);
+        let pixels = if surface.gradient(region.x, region.y).is_some() {
+            // The model's own gradient, per sample.
+            let g = render_region(&Slopes(surface), region, progress)?;
+            let slopes: Vec<[f32; 2]> = g.data.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+            shade_slopes(&slopes, &options)
+        } else {
+            // One sample of margin on every side for the central differences.
+            let grown = Region {
+                col0: region.col0 - 1,
+                row0: region.row0 - 1,
+                width: region.width + 2,
+                height: region.height + 2,
+                ..*region
+            };
+            let heights = render_region(surface, &grown, progress)?.channel(0);
+            shade(&heights, &options)
+        };
         return write_png8(out, region.width, region.height, 1, &pixels);
     }
     let raster = render_region(surface, region, progress)?;

@@ -106,26 +106,34 @@ impl ShadeOptions {
 
 /// Shades a height field given with a one-pixel margin on every side
 /// (`(w + 2) × (h + 2)`, channel 0), returning `w × h` 8-bit intensities. Slopes are
-/// per pixel (height units per pixel) times the exaggeration.
+/// per pixel (height units per pixel) from central differences, times the
+/// exaggeration.
 pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
     let (w, h) = (
         heights.width.saturating_sub(2),
         heights.height.saturating_sub(2),
     );
-    let grad = |x: usize, y: usize| {
-        let gx = 0.5 * (heights.get(x + 2, y + 1, 0) - heights.get(x, y + 1, 0));
-        let gy = 0.5 * (heights.get(x + 1, y + 2, 0) - heights.get(x + 1, y, 0));
-        (gx, gy)
-    };
+    let mut slopes = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let gx = 0.5 * (heights.get(x + 2, y + 1, 0) - heights.get(x, y + 1, 0));
+            let gy = 0.5 * (heights.get(x + 1, y + 2, 0) - heights.get(x + 1, y, 0));
+            slopes.push([gx, gy]);
+        }
+    }
+    shade_slopes(&slopes, options)
+}
+
+/// Shades a field of slopes (∂h/∂x, ∂h/∂y per sample, row-major): from central
+/// differences ([`shade`]) or from a model's analytic gradient
+/// ([`crate::stream::Surface::gradient`]). One 8-bit intensity per slope.
+pub fn shade_slopes(slopes: &[[f32; 2]], options: &ShadeOptions) -> Vec<u8> {
     let scale = options.exaggeration.unwrap_or_else(|| {
         let mut sum = 0.0f64;
-        for y in 0..h {
-            for x in 0..w {
-                let (gx, gy) = grad(x, y);
-                sum += (gx * gx + gy * gy) as f64;
-            }
+        for &[gx, gy] in slopes {
+            sum += (gx * gx + gy * gy) as f64;
         }
-        let rms = (sum / (w * h).max(1) as f64).sqrt() as f32;
+        let rms = (sum / slopes.len().max(1) as f64).sqrt() as f32;
         if rms > 0.0 && rms.is_finite() {
             0.5 / rms
         } else {
@@ -134,15 +142,13 @@ pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
     });
     let l = options.light.normalize();
     let half = half_vector(l, options.view.normalize());
-    let mut out = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let (gx, gy) = grad(x, y);
+    slopes
+        .iter()
+        .map(|&[gx, gy]| {
             let r = reflectance(normal_from_gradient(gx, gy, scale), l, half, options);
-            out.push((r.clamp(0.0, 1.0) * 255.0).round() as u8);
-        }
-    }
-    out
+            (r.clamp(0.0, 1.0) * 255.0).round() as u8
+        })
+        .collect()
 }
 
 /// The unit normal of a height field with slopes (gx, gy) (height per pixel), heights

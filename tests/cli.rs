@@ -625,7 +625,7 @@ fn rsgf_from_the_command_line() {
 #[test]
 fn model_presets_render_and_shade_as_the_library_does() {
     use surftile::models::rugged::ModelConfig;
-    use surftile::shade::shade;
+    use surftile::shade::{shade, shade_slopes};
     use surftile::stream::Region;
     let dir = tempfile::tempdir().unwrap();
     let args = |name: &str, out: &str, extra: &[&str]| {
@@ -672,14 +672,30 @@ fn model_presets_render_and_shade_as_the_library_does() {
         assert_eq!(r.code, 0, "{name}: {}", r.stderr);
         let (pw, ph, colour, png) = common::png8(&dir.path().join("s.png"));
         assert_eq!((pw, ph, colour), (64, 48, png::ColorType::Grayscale));
-        let mut margin = vec![0.0f32; 66 * 50];
-        surface
-            .fill(&Region::new(-38.0, 10.0, 66, 50), &mut margin)
-            .unwrap();
-        let heights = Raster::from_vec(66, 50, 1, margin).unwrap();
+        // Normals from the model's analytic gradient where it has one (the region
+        // divisions), else from central differences of the heights.
+        let want = if surface.gradient(0.0, 0.0).is_some() {
+            let slopes: Vec<[f32; 2]> = (0..64 * 48)
+                .map(|i| {
+                    let g = surface
+                        .gradient(-37.0 + (i % 64) as f64, 11.0 + (i / 64) as f64)
+                        .unwrap();
+                    [g[0] as f32, g[1] as f32]
+                })
+                .collect();
+            shade_slopes(&slopes, &model.material())
+        } else {
+            let mut margin = vec![0.0f32; 66 * 50];
+            surface
+                .fill(&Region::new(-38.0, 10.0, 66, 50), &mut margin)
+                .unwrap();
+            shade(
+                &Raster::from_vec(66, 50, 1, margin).unwrap(),
+                &model.material(),
+            )
+        };
         assert_eq!(
-            png,
-            shade(&heights, &model.material()),
+            png, want,
             "{name}: the shaded PNG is not the library's shading with the {} material",
             model.material
         );
@@ -702,6 +718,31 @@ fn model_presets_render_and_shade_as_the_library_does() {
         images.push(std::fs::read(dir.path().join("m.png")).unwrap());
     }
     assert_ne!(images[0], images[1]);
+    // An explicit exaggeration is per surface pixel: at step 2, slopes per sample are
+    // twice as steep, so the shading uses half the factor per sample.
+    let a = args(
+        "rock",
+        "e.png",
+        &["--shade", "--exaggeration", "3", "--step", "2"],
+    );
+    let r = surftile(
+        dir.path(),
+        &a.iter().map(|s| s.as_str()).collect::<Vec<_>>(),
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (_, _, _, png) = common::png8(&dir.path().join("e.png"));
+    let rock = ModelConfig::preset("rock").unwrap();
+    let mut margin = vec![0.0f32; 66 * 50];
+    let grown = Region::new(-39.0, 9.0, 66, 50).with_step(2.0);
+    rock.surface(5).unwrap().fill(&grown, &mut margin).unwrap();
+    let want = shade(
+        &Raster::from_vec(66, 50, 1, margin).unwrap(),
+        &surftile::shade::ShadeOptions {
+            exaggeration: Some(1.5),
+            ..rock.material()
+        },
+    );
+    assert_eq!(png, want, "the exaggeration is not per surface pixel");
 }
 
 /// A model `.toml` renders with its own parameters; bad models, shading flags and light

@@ -258,6 +258,14 @@ pub trait Surface: Send + Sync {
         buf[0]
     }
 
+    /// The gradient (∂h/∂x, ∂h/∂y) of channel 0 at (x, y), in height units per surface
+    /// pixel, where the model knows it in closed form (seed 001: normals "analytic where
+    /// a model provides it"); shading then uses it instead of central differences. A
+    /// surface answers `Some` everywhere or nowhere; the default is `None`.
+    fn gradient(&self, _x: f64, _y: f64) -> Option<[f64; 2]> {
+        None
+    }
+
     /// Fills rows `rows` of `region` into `out` (those rows only, row-major,
     /// interleaved channels). The single-threaded kernel behind [`Surface::fill`];
     /// the default samples pixel by pixel with a footprint of `region.step`.
