@@ -33,6 +33,7 @@ pub mod error;
 pub mod fft;
 pub mod gpu;
 pub mod hash;
+pub mod imperfect;
 pub mod io;
 pub mod lattice;
 pub mod models;

@@ -11,6 +11,17 @@ use crate::raster::Raster;
 const META_KEY: &str = "surftile";
 
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
+    read_scaled(bytes, what, false)
+}
+
+/// An 8- or 16-bit PNG as grey levels in [0, 1] (0 black, 1 white; alpha dropped),
+/// ignoring any height metadata: for masks and other images that are not heights.
+pub fn read_unit(path: &std::path::Path) -> Result<Raster> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    Ok(read_scaled(&bytes, &path.display().to_string(), true)?.raster)
+}
+
+fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
     let bad = |e: png::DecodingError| Error::decode(what, format!("not a valid PNG ({e})"));
     let mut decoder =
         png::Decoder::new_with_limits(Cursor::new(bytes), png::Limits { bytes: 1 << 32 });
@@ -58,7 +69,11 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     }
     let (mut data, channels) = drop_alpha(data, channels);
     let mut spacing_um = None;
-    if let Some(meta) = meta {
+    if unit {
+        for v in &mut data {
+            *v /= max_level as f32;
+        }
+    } else if let Some(meta) = meta {
         if let (Some(lo), Some(hi)) = (meta.height_min, meta.height_max) {
             let scale = ((hi - lo) / max_level) as f32;
             for v in &mut data {

@@ -1,0 +1,583 @@
+//! Imperfection layers over any surface (seed 004): a *tendency* field from abstract
+//! sources (eqs. 1–2) and the surface's own geometry (exposure and curvature, eqs.
+//! 3–10), guiding a stochastic blemish pattern (dust, eq. 11; patina; peeling, eq. 12).
+//! The result is the weathered height, a layer id per point (the ground-truth mask of
+//! a defect dataset) and the tendency.
+//!
+//! [`Imperfect`] wraps any [`Surface`] and is one itself. A region is computed from the
+//! inner surface's heights on the region grown by a margin (the exposure rays' length
+//! plus the curvature stencil), so every point depends only on heights at fixed
+//! offsets around it: fills in pieces equal the whole, bit for bit.
+//!
+//! Units: positions in surface pixels. Heights enter the geometry scaled by `z_scale`
+//! (surface pixels per height unit; by default chosen so that the rms slope is 0.5,
+//! as shading does, which makes presets work on nanometre and millimetre maps alike).
+//! Layer depths are in σ, the inner surface's height standard deviation.
+
+pub mod geometry;
+pub mod noise;
+pub mod sources;
+
+use std::ops::Range;
+use std::path::Path;
+
+use glam::DVec3;
+
+use crate::error::{Error, Result};
+use crate::stream::{Region, Surface, default_threads, fill_parallel, for_bands};
+use geometry::{Exposure, Window, local_shape, ray_pattern};
+use noise::NoiseParams;
+use sources::{Source, SourceConfig, total_flux};
+
+/// Which blemish pattern.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Pattern {
+    /// Dust (eq. 11): T″ = T·noise; the dust adds T″·depth to the height; layer 1
+    /// where T″ ≥ λ₀.
+    Dust,
+    /// Patina: T″ = T·noise; layer 1 where T″ ≥ λ₀; the height is unchanged.
+    Patina,
+    /// Peeling (eq. 12): T″ = T·fBm; layer i where λᵢ₋₁ ≤ T″ < λᵢ; the height loses the
+    /// depths of the layers peeled.
+    Peeling,
+}
+
+/// The geometric factors (`[geometry]`): exposure (eqs. 4–6) and curvature (eqs.
+/// 8–9), combined by α = 1 + r₀G_ξ + r₁|κ_a| + r₂|κ_g| (eq. 10).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GeometryConfig {
+    /// d_h of ω(d) = d/(d_h + d) (eq. 4), in surface pixels (> 0).
+    pub half_exposure_px: f64,
+    /// n₀, the exposure rays (eq. 6), 1 to 1024.
+    pub rays: usize,
+    /// Longest ray, in surface pixels: bounds the cost and the fill margin.
+    pub ray_length_px: f64,
+    /// r₀, the weight of exposure G_ξ ∈ [0, 1] (negative: sheltered points gather more).
+    pub exposure_weight: f64,
+    /// r₁, the weight of |κ_a| (mean curvature).
+    pub mean_curvature_weight: f64,
+    /// r₂, the weight of |κ_g| (Gaussian curvature).
+    pub gaussian_curvature_weight: f64,
+    /// Curvatures in units of their rms over a 256² sample of the surface at the origin
+    /// (default), so that a weight means the same on any surface; `false`: in 1/px and
+    /// 1/px², as eq. (10) writes them.
+    pub curvature_relative: bool,
+}
+
+impl Default for GeometryConfig {
+    fn default() -> Self {
+        GeometryConfig {
+            half_exposure_px: 8.0,
+            rays: 16,
+            ray_length_px: 32.0,
+            exposure_weight: 0.0,
+            mean_curvature_weight: 0.0,
+            gaussian_curvature_weight: 0.0,
+            curvature_relative: true,
+        }
+    }
+}
+
+/// Layer thresholds and depths (`[layers]`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LayersConfig {
+    /// λ₀ < λ₁ < … in (0, 1] (eq. 12); dust and patina use λ₀ only.
+    pub thresholds: Vec<f64>,
+    /// Peeling: the thickness of each layer lost, in σ of the surface heights (one per
+    /// threshold). Dust: one value, the thickness of full dust (T″ = 1).
+    pub depths_sigma: Vec<f64>,
+}
+
+impl Default for LayersConfig {
+    fn default() -> Self {
+        LayersConfig {
+            thresholds: vec![0.3],
+            depths_sigma: vec![0.2],
+        }
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// An imperfection layer's configuration (a `.toml`; presets `dust`, `patina`,
+/// `peeling` in `tiles/imperfect/`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImperfectConfig {
+    /// The blemish pattern.
+    pub pattern: Pattern,
+    /// Growth: every γ is multiplied by it (seed 004 §4.1). Default 1.
+    #[serde(default = "one")]
+    pub age: f64,
+    /// Surface pixels per height unit; default: the one that makes the rms slope 0.5.
+    #[serde(default)]
+    pub z_scale: Option<f64>,
+    /// The sources (`[[source]]`), at least one.
+    #[serde(default)]
+    pub source: Vec<SourceConfig>,
+    /// Exposure and curvature.
+    #[serde(default)]
+    pub geometry: GeometryConfig,
+    /// The noise of the pattern.
+    #[serde(default)]
+    pub noise: NoiseParams,
+    /// Layer thresholds and depths.
+    #[serde(default)]
+    pub layers: LayersConfig,
+}
+
+macro_rules! preset {
+    ($name:literal) => {
+        (
+            $name,
+            include_str!(concat!("../../tiles/imperfect/", $name, ".toml")),
+        )
+    };
+}
+
+/// The presets, by name, with their TOML text.
+pub const PRESETS: [(&str, &str); 3] = [preset!("dust"), preset!("patina"), preset!("peeling")];
+
+impl ImperfectConfig {
+    /// Parses and validates a TOML text; `what` names it in errors.
+    pub fn from_toml(text: &str, what: &str) -> Result<ImperfectConfig> {
+        let c: ImperfectConfig =
+            toml::from_str(text).map_err(|e| crate::models::toml_error(text, what, e))?;
+        c.validate()?;
+        Ok(c)
+    }
+
+    /// A file, or a preset name (`dust`, `patina`, `peeling`) where no such file
+    /// exists. Returns the configuration and the folder its relative paths are in.
+    pub fn load(path: &Path) -> Result<(ImperfectConfig, Option<std::path::PathBuf>)> {
+        if !path.exists()
+            && let Some(name) = path.to_str()
+        {
+            let name = name.trim_end_matches(".toml");
+            if let Some((n, text)) = PRESETS.iter().find(|(n, _)| *n == name) {
+                return Ok((ImperfectConfig::from_toml(text, n)?, None));
+            }
+            if !name.contains(['/', '\\']) {
+                return Err(Error::param(
+                    "imperfect",
+                    path.display(),
+                    "an imperfection .toml file or a preset name (dust, patina, peeling)",
+                ));
+            }
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let c = ImperfectConfig::from_toml(&text, &path.display().to_string())?;
+        Ok((c, path.parent().map(Path::to_path_buf)))
+    }
+
+    /// Checks every parameter, naming the first one out of range (sources are checked
+    /// when the layer is built, where their files and the surface are known).
+    pub fn validate(&self) -> Result<()> {
+        let g = &self.geometry;
+        if !(g.half_exposure_px.is_finite() && g.half_exposure_px > 0.0) {
+            return Err(Error::param(
+                "geometry.half_exposure_px",
+                g.half_exposure_px,
+                "d_h > 0 pixels: the half-exposure distance of ω(d) = d/(d_h + d) (eq. 4)",
+            ));
+        }
+        if !(1..=1024).contains(&g.rays) {
+            return Err(Error::param("geometry.rays", g.rays, "1 to 1024 rays"));
+        }
+        if !(g.ray_length_px.is_finite() && g.ray_length_px >= 1.0 && g.ray_length_px <= 1024.0) {
+            return Err(Error::param(
+                "geometry.ray_length_px",
+                g.ray_length_px,
+                "1 to 1024 pixels",
+            ));
+        }
+        for (name, v) in [
+            ("geometry.exposure_weight", g.exposure_weight),
+            ("geometry.mean_curvature_weight", g.mean_curvature_weight),
+            (
+                "geometry.gaussian_curvature_weight",
+                g.gaussian_curvature_weight,
+            ),
+        ] {
+            if !v.is_finite() {
+                return Err(Error::param(name, v, "a finite weight"));
+            }
+        }
+        if !(self.age.is_finite() && self.age >= 0.0) {
+            return Err(Error::param(
+                "age",
+                self.age,
+                "a finite age ≥ 0 (it scales every γ)",
+            ));
+        }
+        if let Some(z) = self.z_scale
+            && !(z.is_finite() && z > 0.0)
+        {
+            return Err(Error::param(
+                "z_scale",
+                z,
+                "positive surface pixels per height unit",
+            ));
+        }
+        if self.source.is_empty() {
+            return Err(Error::param(
+                "source",
+                "none",
+                "at least one [[source]] (ambient, point, directional, spotlight or projector)",
+            ));
+        }
+        self.noise.validate()?;
+        let l = &self.layers;
+        if l.thresholds.is_empty() {
+            return Err(Error::param(
+                "layers.thresholds",
+                "[]",
+                "at least one threshold λ₀ in (0, 1]",
+            ));
+        }
+        let mut last = 0.0;
+        for (i, &t) in l.thresholds.iter().enumerate() {
+            if !(t > last && t <= 1.0) {
+                return Err(Error::param(
+                    "layers.thresholds",
+                    format!("{:?}", l.thresholds),
+                    format!(
+                        "thresholds in increasing order within (0, 1]: λ{i} = {t} must exceed {last}"
+                    ),
+                ));
+            }
+            last = t;
+        }
+        let depths_wanted = match self.pattern {
+            Pattern::Dust => 1,
+            Pattern::Patina => 0,
+            Pattern::Peeling => l.thresholds.len(),
+        };
+        if self.pattern != Pattern::Patina && l.depths_sigma.len() != depths_wanted {
+            return Err(Error::param(
+                "layers.depths_sigma",
+                format!("{:?}", l.depths_sigma),
+                format!("{depths_wanted} depth(s) for {:?}", self.pattern).to_lowercase(),
+            ));
+        }
+        if let Some(d) = l
+            .depths_sigma
+            .iter()
+            .find(|d| !(d.is_finite() && **d >= 0.0))
+        {
+            return Err(Error::param(
+                "layers.depths_sigma",
+                d,
+                "finite depths ≥ 0, in σ of the surface heights",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A region's layers: the weathered heights, the layer id (0: intact outermost layer;
+/// dust and patina: 1 where present; peeling: the layer showing) and the tendency T.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayerFill {
+    /// Weathered heights (channel 0 of the inner surface, in its units).
+    pub heights: Vec<f32>,
+    /// Layer id per point.
+    pub layers: Vec<u8>,
+    /// Tendency T ∈ [0, 1] (eq. 3), before the noise.
+    pub tendency: Vec<f32>,
+}
+
+/// Rows per band of a parallel fill: each band reads its margin again, so bands are
+/// taller than the streaming default.
+const IMPERFECT_BAND_ROWS: usize = 64;
+
+/// An imperfection layer over `S` (seed 004), itself a [`Surface`] of weathered
+/// heights.
+pub struct Imperfect<S> {
+    inner: S,
+    config: ImperfectConfig,
+    sources: Vec<Source>,
+    pattern: Vec<[f64; 3]>,
+    z_scale: f64,
+    sigma: f64,
+    /// The units |κ_a| and |κ_g| are divided by (1 unless `curvature_relative`).
+    curvature_units: [f64; 2],
+    seed: u32,
+}
+
+impl<S: Surface> Imperfect<S> {
+    /// The layer `config` over `inner`, with noise seed `seed`; a projector's mask path
+    /// is relative to `base`. Measures σ and the rms slope on a 256² fill at the origin;
+    /// refuses a source placed inside the surface.
+    pub fn new(
+        inner: S,
+        config: &ImperfectConfig,
+        base: Option<&Path>,
+        seed: u32,
+    ) -> Result<Imperfect<S>> {
+        config.validate()?;
+        let n = 256;
+        let c = inner.channels();
+        let mut buf = vec![0.0f32; n * n * c];
+        inner.fill(&Region::new(0.0, 0.0, n, n), &mut buf)?;
+        let h = |x: usize, y: usize| buf[(y * n + x) * c] as f64;
+        let (mut sum, mut sq, mut slope2, mut count) = (0.0, 0.0, 0.0, 0usize);
+        for y in 1..n - 1 {
+            for x in 1..n - 1 {
+                let (gx, gy) = (
+                    0.5 * (h(x + 1, y) - h(x - 1, y)),
+                    0.5 * (h(x, y + 1) - h(x, y - 1)),
+                );
+                if h(x, y).is_finite() && gx.is_finite() && gy.is_finite() {
+                    sum += h(x, y);
+                    sq += h(x, y) * h(x, y);
+                    slope2 += gx * gx + gy * gy;
+                    count += 1;
+                }
+            }
+        }
+        let count = count.max(1) as f64;
+        let sd = (sq / count - (sum / count).powi(2)).max(0.0).sqrt();
+        let rms_slope = (slope2 / count).sqrt();
+        let sigma = if sd > 0.0 && sd.is_finite() { sd } else { 1.0 };
+        let z_scale = config
+            .z_scale
+            .unwrap_or(if rms_slope > 0.0 && rms_slope.is_finite() {
+                0.5 / rms_slope
+            } else {
+                1.0
+            });
+        let mut curvature_units = [1.0, 1.0];
+        if config.geometry.curvature_relative {
+            let scaled: Vec<f32> = (0..n * n)
+                .map(|i| (buf[i * c] as f64 * z_scale) as f32)
+                .collect();
+            let win = Window {
+                data: &scaled,
+                width: n,
+                height: n,
+            };
+            let (mut sa, mut sg, mut k) = (0.0f64, 0.0f64, 0usize);
+            for y in 1..n - 1 {
+                for x in 1..n - 1 {
+                    let (_, a, g) = local_shape(&win, y * n + x);
+                    if a.is_finite() && g.is_finite() {
+                        sa += a * a;
+                        sg += g * g;
+                        k += 1;
+                    }
+                }
+            }
+            let k = k.max(1) as f64;
+            for (u, s) in curvature_units.iter_mut().zip([sa, sg]) {
+                let rms = (s / k).sqrt();
+                if rms > 0.0 && rms.is_finite() {
+                    *u = rms;
+                }
+            }
+        }
+        let mut sources = Vec::with_capacity(config.source.len());
+        for (i, sc) in config.source.iter().enumerate() {
+            let s = Source::new(sc, i + 1, base)?;
+            if let Some(p) = s.position() {
+                let below = inner.height(p.x, p.y) as f64 * z_scale;
+                if p.z.is_nan() || below.is_nan() || p.z <= below {
+                    return Err(Error::param(
+                        format!("source {}: position", i + 1),
+                        format!("[{}, {}, {}]", p.x, p.y, p.z),
+                        format!(
+                            "a point above the surface: the source is inside it (the surface there is at z = {below:.3} px)"
+                        ),
+                    ));
+                }
+            }
+            sources.push(s.aged(config.age));
+        }
+        Ok(Imperfect {
+            inner,
+            config: config.clone(),
+            sources,
+            pattern: ray_pattern(config.geometry.rays),
+            z_scale,
+            sigma,
+            curvature_units,
+            seed,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ImperfectConfig {
+        &self.config
+    }
+
+    /// Surface pixels per height unit used by the geometry.
+    pub fn z_scale(&self) -> f64 {
+        self.z_scale
+    }
+
+    /// σ, the height standard deviation layer depths are measured in.
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
+    /// Samples of margin a fill at `step` reads around its region.
+    fn margin(&self, step: f64) -> usize {
+        (self.config.geometry.ray_length_px / step).ceil() as usize + 2
+    }
+
+    /// Heights, layer ids and tendencies of `region`, on all cores.
+    pub fn fill_layers(&self, region: &Region) -> Result<LayerFill> {
+        region.validate()?;
+        let len = region.width * region.height;
+        let mut out = vec![0.0f32; len * 3];
+        for_bands(
+            region,
+            3,
+            &mut out,
+            default_threads(),
+            IMPERFECT_BAND_ROWS,
+            |rows, chunk| self.compute(region, rows, chunk),
+        )?;
+        let mut f = LayerFill {
+            heights: Vec::with_capacity(len),
+            layers: Vec::with_capacity(len),
+            tendency: Vec::with_capacity(len),
+        };
+        for p in out.chunks_exact(3) {
+            f.heights.push(p[0]);
+            f.layers.push(p[1] as u8);
+            f.tendency.push(p[2]);
+        }
+        Ok(f)
+    }
+
+    /// Rows `rows` of `region` as interleaved (height, layer id, tendency) into `out`.
+    fn compute(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let step = region.step;
+        let m = self.margin(step);
+        let (w, h) = (region.width, rows.len());
+        let grown = Region {
+            col0: region.col0 - m as i64,
+            row0: region.row0 + rows.start as i64 - m as i64,
+            width: w + 2 * m,
+            height: h + 2 * m,
+            ..*region
+        };
+        let (gw, gh) = (grown.width, grown.height);
+        let c = self.inner.channels();
+        let mut raw = vec![0.0f32; gw * gh * c];
+        if fill_parallel(&self.inner, &grown, &mut raw, 1).is_err() {
+            out.fill(f32::NAN);
+            return;
+        }
+        let heights: Vec<f32> = raw.iter().step_by(c).copied().collect();
+        // Heights in sample units: x, y and z in one unit for the rays and curvatures.
+        let k = (self.z_scale / step) as f32;
+        let scaled: Vec<f32> = heights.iter().map(|&v| v * k).collect();
+        let top = scaled
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(f32::MIN, f32::max);
+        let win = Window {
+            data: &scaled,
+            width: gw,
+            height: gh,
+        };
+        let g = &self.config.geometry;
+        let exposure = (g.exposure_weight != 0.0).then(|| {
+            Exposure::new(
+                &self.pattern,
+                g.ray_length_px / step,
+                g.half_exposure_px / step,
+            )
+        });
+        let layers = &self.config.layers;
+        for r in 0..h {
+            let y = region.y_at(rows.start + r);
+            for col in 0..w {
+                let at = (r + m) * gw + col + m;
+                let o = &mut out[(r * w + col) * 3..(r * w + col) * 3 + 3];
+                let hv = heights[at];
+                if !hv.is_finite() {
+                    o.copy_from_slice(&[f32::NAN, 0.0, f32::NAN]);
+                    continue;
+                }
+                let x = region.x_at(col);
+                let ([hu, hvv], mean, gauss) = local_shape(&win, at);
+                let normal = DVec3::new(-hu, -hvv, 1.0).normalize();
+                let p = DVec3::new(x, y, hv as f64 * self.z_scale);
+                let flux = total_flux(&self.sources, p, normal);
+                let exposed = exposure
+                    .as_ref()
+                    .map_or(1.0, |e| e.at(&win, col + m, r + m, normal.to_array(), top));
+                // Curvatures from sample units to 1/px and 1/px².
+                let alpha = 1.0
+                    + g.exposure_weight * exposed
+                    + g.mean_curvature_weight * (mean / step).abs() / self.curvature_units[0]
+                    + g.gaussian_curvature_weight * (gauss / (step * step)).abs()
+                        / self.curvature_units[1];
+                let t = (flux * alpha).clamp(0.0, 1.0);
+                let t2 = t * self.config.noise.at(self.seed, x, y);
+                let id = layers.thresholds.iter().take_while(|&&l| t2 >= l).count();
+                let height = match self.config.pattern {
+                    Pattern::Dust => hv as f64 + t2 * layers.depths_sigma[0] * self.sigma,
+                    Pattern::Patina => hv as f64,
+                    Pattern::Peeling => {
+                        hv as f64 - layers.depths_sigma[..id].iter().sum::<f64>() * self.sigma
+                    }
+                };
+                o[0] = height as f32;
+                o[1] = id as f32;
+                o[2] = t as f32;
+            }
+        }
+    }
+}
+
+impl<S: Surface> Surface for Imperfect<S> {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    /// One sample with its margin: bounded cost, (2·margin + 1)² inner heights.
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        let step = if footprint.is_finite() && footprint > 0.0 {
+            footprint
+        } else {
+            1.0
+        };
+        let region = Region::new(x, y, 1, 1).with_step(step);
+        let mut o = [0.0f32; 3];
+        self.compute(&region, 0..1, &mut o);
+        out[0] = o[0];
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let mut o = vec![0.0f32; rows.len() * region.width * 3];
+        self.compute(region, rows, &mut o);
+        for (d, s) in out.iter_mut().zip(o.chunks_exact(3)) {
+            *d = s[0];
+        }
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        region.validate()?;
+        if out.len() != region.width * region.height {
+            return fill_parallel(self, region, out, default_threads());
+        }
+        for_bands(
+            region,
+            1,
+            out,
+            default_threads(),
+            IMPERFECT_BAND_ROWS,
+            |rows, chunk| self.fill_rows(region, rows, chunk),
+        )
+    }
+}
