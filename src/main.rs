@@ -15,9 +15,10 @@ use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::{Bank, Method, Rule};
 use surftile::demo::run_demo;
+use surftile::imperfect::{Imperfect, ImperfectConfig};
 use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
 use surftile::models::milling::{MillingConfig, MillingSurface};
-use surftile::render::{checked_size, render_to_file};
+use surftile::render::{LayerOutputs, checked_size, render_imperfect, render_to_file};
 use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;
 use surftile::source::SourceSpec;
@@ -308,6 +309,21 @@ enum Command {
         /// in pixels).
         #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
         spacing: f64,
+        /// An imperfection layer over the source (seed 004): a .toml or a preset (dust,
+        /// patina, peeling).
+        #[arg(long)]
+        imperfect: Option<PathBuf>,
+        /// With --imperfect: its age, multiplying every source's γ (default: the
+        /// configuration's, 1 for the presets).
+        #[arg(long, allow_negative_numbers = true)]
+        age: Option<f64>,
+        /// With --imperfect: the layer id of every pixel as an 8-bit grey PNG (0 intact;
+        /// dust and patina 1; peeling 1, 2, … for each layer lost).
+        #[arg(long)]
+        mask: Option<PathBuf>,
+        /// With --imperfect: the tendency T ∈ [0, 1] as a float image (.tif or .npy).
+        #[arg(long)]
+        tendency: Option<PathBuf>,
         /// Fill on the GPU (any Vulkan, Metal or DX12 adapter, software ones included);
         /// without an adapter, or for a rule the GPU does not run, fills on the CPU with
         /// a notice.
@@ -852,10 +868,47 @@ fn run(command: Command) -> Result<()> {
             out,
             shading,
             spacing,
+            imperfect,
+            age,
+            mask,
+            tendency,
             gpu,
         } => {
             let region = window.region(step)?;
             check_output(&out)?;
+            let outputs = LayerOutputs {
+                mask: mask.as_deref(),
+                tendency: tendency.as_deref(),
+            };
+            if imperfect.is_none() {
+                let given = [
+                    ("age", age.is_some()),
+                    ("mask", mask.is_some()),
+                    ("tendency", tendency.is_some()),
+                ];
+                if let Some((name, _)) = given.iter().find(|(_, g)| *g) {
+                    return Err(Error::param(
+                        *name,
+                        "given without --imperfect",
+                        "--imperfect CONFIG as well (it belongs to an imperfection layer)",
+                    ));
+                }
+            }
+            outputs.validate()?;
+            for path in [&mask, &tendency].into_iter().flatten() {
+                check_output(path)?;
+            }
+            let layer_config = match &imperfect {
+                Some(path) => {
+                    let (mut c, base) = ImperfectConfig::load(path)?;
+                    if let Some(a) = age {
+                        c.age = a;
+                        c.validate()?;
+                    }
+                    Some((c, base))
+                }
+                None => None,
+            };
             let (spec, mut surface) = load_surface(&source, seed, spacing)?;
             let shading = shading.options(spec.material())?;
             if gpu {
@@ -873,6 +926,26 @@ fn run(command: Command) -> Result<()> {
                 }
             }
             let start = Instant::now();
+            if let Some((config, base)) = layer_config {
+                let layer = Imperfect::new(surface, &config, base.as_deref(), seed)?;
+                render_imperfect(
+                    &layer,
+                    &region,
+                    &out,
+                    shading.as_ref(),
+                    spec.spacing_um(),
+                    outputs,
+                    &mut progress_reporter("render"),
+                )?;
+                eprintln!(
+                    "render: wrote {} with a {:?} layer (age {}) in {:.2} s",
+                    out.display(),
+                    config.pattern,
+                    config.age,
+                    start.elapsed().as_secs_f64()
+                );
+                return Ok(());
+            }
             render_to_file(
                 surface.as_ref(),
                 &region,

@@ -119,3 +119,143 @@ pub fn render_to_file(
     let raster = render_region(surface, region, progress)?;
     write_heights(out, &raster, spacing_um.map(|s| s * region.step))
 }
+
+/// Where `render --imperfect` writes besides its main output.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LayerOutputs<'a> {
+    /// The layer id per pixel as an 8-bit grey PNG (0, 1, 2, … as grey levels: the
+    /// ground-truth mask of a defect dataset).
+    pub mask: Option<&'a Path>,
+    /// The tendency T ∈ [0, 1] per pixel as a float image (.tif or .npy).
+    pub tendency: Option<&'a Path>,
+}
+
+impl LayerOutputs<'_> {
+    /// Checks the formats before any work: a PNG mask, a float tendency image.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(m) = self.mask
+            && Format::from_path(m)? != Format::Png
+        {
+            return Err(Error::param(
+                "mask",
+                m.display(),
+                "a .png file (layer ids as 8-bit grey levels)",
+            ));
+        }
+        if let Some(t) = self.tendency
+            && Format::from_path(t)? == Format::Png
+        {
+            return Err(Error::param(
+                "tendency",
+                t.display(),
+                "a .tif or .npy file (the tendency is a float image)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Renders an imperfection layer: the weathered heights (or their shading) to `out`,
+/// and its mask and tendency where asked, all from one computation, strip by strip
+/// (identical to a whole fill: pieces agree).
+pub fn render_imperfect<S: Surface>(
+    layer: &crate::imperfect::Imperfect<S>,
+    region: &Region,
+    out: &Path,
+    shading: Option<&ShadeOptions>,
+    spacing_um: Option<f64>,
+    outputs: LayerOutputs,
+    progress: &mut dyn FnMut(f64),
+) -> Result<()> {
+    let format = Format::from_path(out)?;
+    outputs.validate()?;
+    if let Some(o) = shading {
+        o.validate()?;
+        if format != Format::Png {
+            return Err(Error::param(
+                "out",
+                out.display(),
+                "a .png file with --shade (the shading is an 8-bit image)",
+            ));
+        }
+    }
+    region.validate()?;
+    // One sample of margin for the shading's central differences.
+    let pad = shading.is_some() as usize;
+    let grown = Region {
+        col0: region.col0 - pad as i64,
+        row0: region.row0 - pad as i64,
+        width: region.width + 2 * pad,
+        height: region.height + 2 * pad,
+        ..*region
+    };
+    let samples = grown
+        .width
+        .checked_mul(grown.height)
+        .filter(|&n| n <= MAX_RENDER_SAMPLES / 2)
+        .ok_or_else(|| {
+            Error::Limits(format!(
+                "a {}×{} region is over the limit of {} samples per imperfect render; render it in tiles",
+                region.width,
+                region.height,
+                MAX_RENDER_SAMPLES / 2
+            ))
+        })?;
+    let (mut heights, mut layers, mut tendency) = (
+        Vec::with_capacity(samples),
+        Vec::with_capacity(samples),
+        Vec::with_capacity(samples),
+    );
+    let mut row = 0;
+    while row < grown.height {
+        let rows = STRIP_ROWS.min(grown.height - row);
+        let part = layer.fill_layers(&grown.sub(0, row, grown.width, rows)?)?;
+        heights.extend_from_slice(&part.heights);
+        layers.extend_from_slice(&part.layers);
+        tendency.extend_from_slice(&part.tendency);
+        row += rows;
+        progress(row as f64 / grown.height as f64);
+    }
+    let crop = |v: &[f32]| -> Vec<f32> {
+        (0..region.height)
+            .flat_map(|r| {
+                let s = (r + pad) * grown.width + pad;
+                v[s..s + region.width].iter().copied()
+            })
+            .collect()
+    };
+    match shading {
+        Some(o) => {
+            let options = ShadeOptions {
+                exaggeration: o.exaggeration.map(|e| e / region.step as f32),
+                ..*o
+            };
+            let raster = Raster::from_vec(grown.width, grown.height, 1, heights.clone())?;
+            write_png8(
+                out,
+                region.width,
+                region.height,
+                1,
+                &shade(&raster, &options),
+            )?;
+        }
+        None => {
+            let raster = Raster::from_vec(region.width, region.height, 1, crop(&heights))?;
+            write_heights(out, &raster, spacing_um.map(|s| s * region.step))?;
+        }
+    }
+    if let Some(m) = outputs.mask {
+        let ids: Vec<u8> = (0..region.height)
+            .flat_map(|r| {
+                let s = (r + pad) * grown.width + pad;
+                layers[s..s + region.width].iter().copied()
+            })
+            .collect();
+        write_png8(m, region.width, region.height, 1, &ids)?;
+    }
+    if let Some(t) = outputs.tendency {
+        let raster = Raster::from_vec(region.width, region.height, 1, crop(&tendency))?;
+        write_heights(t, &raster, None)?;
+    }
+    Ok(())
+}

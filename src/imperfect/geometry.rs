@@ -47,7 +47,7 @@ pub struct Exposure {
 
 /// The start height above the surface, in samples: keeps a ray leaving a flat or convex
 /// point from hitting its own start.
-const LIFT: f64 = 1e-3;
+const LIFT: f32 = 1e-3;
 
 impl Exposure {
     /// Rays of `pattern`, `length` samples long, with d_h = `half_distance` samples.
@@ -67,28 +67,19 @@ impl Exposure {
     /// G_ξ at window column `x`, row `y` (eq. 6), with unit normal `n` there: the mean
     /// over the rays of ω(d) = d/(d_h + d) (eq. 4), d the distance to the first point
     /// where the surface (bilinear between samples) rises above the ray, refined
-    /// linearly between steps; ω = 1 without a hit. `top` is the window's highest
-    /// height: a rising ray above it can no longer hit.
+    /// linearly between steps; ω = 1 without a hit. `top` bounds the heights within
+    /// the rays' reach ([`local_max`] with radius [`Self::margin`]): a rising ray above
+    /// it can no longer hit.
     pub fn at(&self, win: &Window, x: usize, y: usize, n: [f64; 3], top: f32) -> f64 {
         let g = win.data;
         let w = win.width;
-        let z0 = g[y * w + x] as f64 + LIFT;
-        let top = top as f64;
+        let z0 = g[y * w + x] + LIFT;
+        let base = (y * w + x) as isize;
         // A frame about n (n_z > 0 on a height field): Duff et al. 2017.
         let a = -1.0 / (1.0 + n[2]);
         let b = n[0] * n[1] * a;
         let t1 = [1.0 + n[0] * n[0] * a, b, -n[0]];
         let t2 = [b, 1.0 + n[1] * n[1] * a, -n[1]];
-        let surface = |px: f64, py: f64| {
-            let (ix, iy) = (px.floor(), py.floor());
-            let (fx, fy) = (px - ix, py - iy);
-            let p = iy as usize * w + ix as usize;
-            let (g00, g10) = (g[p] as f64, g[p + 1] as f64);
-            let (g01, g11) = (g[p + w] as f64, g[p + w + 1] as f64);
-            let top = g00 + (g10 - g00) * fx;
-            let bottom = g01 + (g11 - g01) * fx;
-            top + (bottom - top) * fy
-        };
         let mut sum = 0.0f64;
         for d in &self.pattern {
             let dir = [
@@ -103,49 +94,127 @@ impl Exposure {
                 self.length
             };
             let steps = (self.length / dt).floor() as usize;
-            let mut omega = 1.0f64;
-            let (mut prev_gap, mut prev_t) = (LIFT, 0.0f64);
-            for k in 1..=steps {
-                let t = k as f64 * dt;
-                let z = z0 + dir[2] * t;
-                if dir[2] >= 0.0 && z > top {
+            // Marched in f32 from the point: positions stay within the window (its
+            // margin covers the ray length), so truncation is the floor.
+            let (sx, sy, sz) = (
+                (dir[0] * dt) as f32,
+                (dir[1] * dt) as f32,
+                (dir[2] * dt) as f32,
+            );
+            let dt = dt as f32;
+            let rising = dir[2] >= 0.0;
+            let mut omega = 1.0f32;
+            let (mut prev_gap, mut prev_t) = (LIFT, 0.0f32);
+            // Position, height and distance advance by adds (no int-to-float
+            // conversion in the loop).
+            // Offsets from the point, not window positions: the same bits wherever the
+            // point sits in its window, so fills in pieces agree.
+            let (mut px, mut py, mut z, mut t) = (0.0f32, 0.0f32, z0, 0.0f32);
+            for _ in 0..steps {
+                px += sx;
+                py += sy;
+                z += sz;
+                t += dt;
+                if rising && z > top {
                     break;
                 }
-                let gap = z - surface(x as f64 + dir[0] * t, y as f64 + dir[1] * t);
+                // roundss (x86-64-v2) and 32-bit conversions: far cheaper than
+                // f32 ↔ usize.
+                let (flx, fly) = (px.floor(), py.floor());
+                let (fx, fy) = (px - flx, py - fly);
+                let p = (base + fly as i32 as isize * w as isize + flx as i32 as isize) as usize;
+                let (r0, r1) = (&g[p..p + 2], &g[p + w..p + w + 2]);
+                let upper = r0[0] + (r0[1] - r0[0]) * fx;
+                let lower = r1[0] + (r1[1] - r1[0]) * fx;
+                let gap = z - (upper + (lower - upper) * fy);
                 if gap < 0.0 {
                     // The crossing between the last step above and this one.
                     let d = prev_t + (t - prev_t) * prev_gap / (prev_gap - gap);
-                    omega = d / (self.half_distance + d);
+                    omega = d / (self.half_distance as f32 + d);
                     break;
                 }
                 prev_gap = gap;
                 prev_t = t;
             }
-            sum += omega;
+            sum += omega as f64;
         }
         sum / self.pattern.len() as f64
     }
 }
 
+/// The maximum of `win` over the (2r + 1)² square about every sample whose square lies
+/// inside the window (others: +∞), by separable van Herk / Gil–Werman running maxima
+/// (three comparisons per sample and pass, whatever r). A rising exposure ray that
+/// climbs above it can no longer hit anything within its reach.
+pub fn local_max(win: &Window, r: usize) -> Vec<f32> {
+    let (w, h) = (win.width, win.height);
+    let k = 2 * r + 1;
+    let mut out = vec![f32::INFINITY; w * h];
+    if w < k || h < k {
+        return out;
+    }
+    // Running maxima of `line` over windows [c − r, c + r], for c in r..n − r.
+    let run = |line: &[f32], res: &mut [f32]| {
+        let n = line.len();
+        let mut pre = vec![f32::MIN; n];
+        let mut suf = vec![f32::MIN; n];
+        for i in 0..n {
+            pre[i] = if i % k == 0 {
+                line[i]
+            } else {
+                pre[i - 1].max(line[i])
+            };
+        }
+        for i in (0..n).rev() {
+            suf[i] = if i % k == k - 1 || i == n - 1 {
+                line[i]
+            } else {
+                suf[i + 1].max(line[i])
+            };
+        }
+        for c in r..n - r {
+            res[c] = suf[c - r].max(pre[c + r]);
+        }
+    };
+    let mut rows = vec![f32::INFINITY; w * h];
+    for y in 0..h {
+        run(&win.data[y * w..(y + 1) * w], &mut rows[y * w..(y + 1) * w]);
+    }
+    let mut col = vec![0.0f32; h];
+    let mut res = vec![f32::INFINITY; h];
+    for x in r..w - r {
+        for y in 0..h {
+            col[y] = rows[y * w + x];
+        }
+        run(&col, &mut res);
+        for y in r..h - r {
+            out[y * w + x] = res[y];
+        }
+    }
+    out
+}
+
 /// The slope (h_u, h_v) and the mean and Gaussian curvature (eqs. 8–9 with
-/// Q(u, v) = (u, v, h(u, v))) at window index `at`, from central differences; all in
-/// sample units.
+/// Q(u, v) = (u, v, h(u, v))) at window index `at`, from central differences over ±`s`
+/// samples (s = 1: the finest; larger: the shape at that scale, not the pixel noise of
+/// a rough surface); all in sample units.
 ///
 /// With Q_u = (1, 0, h_u), Q_v = (0, 1, h_v), Q_u × Q_v = (−h_u, −h_v, 1) and
 /// A = h_uu, B = h_uv, C = h_vv:
 /// κ_a = (h_uu(1 + h_v²) − 2h_uv·h_u·h_v + h_vv(1 + h_u²)) / (2W³),
 /// κ_g = (h_uu·h_vv − h_uv²) / W⁴, W = √(1 + h_u² + h_v²).
-pub fn local_shape(win: &Window, at: usize) -> ([f64; 2], f64, f64) {
+pub fn local_shape(win: &Window, at: usize, s: usize) -> ([f64; 2], f64, f64) {
     let g = win.data;
-    let w = win.width;
+    let w = win.width * s;
     let h = |i: usize| g[i] as f64;
     let c = h(at);
-    let (l, r, u, d) = (h(at - 1), h(at + 1), h(at - w), h(at + w));
-    let hu = 0.5 * (r - l);
-    let hv = 0.5 * (d - u);
-    let huu = r - 2.0 * c + l;
-    let hvv = d - 2.0 * c + u;
-    let huv = 0.25 * (h(at + w + 1) - h(at + w - 1) - h(at - w + 1) + h(at - w - 1));
+    let (l, r, u, d) = (h(at - s), h(at + s), h(at - w), h(at + w));
+    let sf = s as f64;
+    let hu = 0.5 * (r - l) / sf;
+    let hv = 0.5 * (d - u) / sf;
+    let huu = (r - 2.0 * c + l) / (sf * sf);
+    let hvv = (d - 2.0 * c + u) / (sf * sf);
+    let huv = 0.25 * (h(at + w + s) - h(at + w - s) - h(at - w + s) + h(at - w - s)) / (sf * sf);
     let w2 = 1.0 + hu * hu + hv * hv;
     let wl = w2.sqrt();
     let mean =
@@ -162,6 +231,32 @@ mod tests {
         (0..n * n)
             .map(|i| f((i % n) as f64, (i / n) as f64) as f32)
             .collect()
+    }
+
+    /// The running maximum against a brute-force scan.
+    #[test]
+    fn local_max_matches_a_scan() {
+        let (w, h, r) = (37usize, 29usize, 4usize);
+        let data: Vec<f32> = (0..w * h)
+            .map(|i| ((i * 7919) % 113) as f32 - ((i * 31) % 17) as f32)
+            .collect();
+        let win = Window {
+            data: &data,
+            width: w,
+            height: h,
+        };
+        let m = local_max(&win, r);
+        for y in r..h - r {
+            for x in r..w - r {
+                let mut want = f32::MIN;
+                for yy in y - r..=y + r {
+                    for xx in x - r..=x + r {
+                        want = want.max(data[yy * w + xx]);
+                    }
+                }
+                assert_eq!(m[y * w + x], want, "({x}, {y})");
+            }
+        }
     }
 
     /// Exactly 1 on a plane, level or tilted, at any height: rays in the hemisphere
@@ -272,7 +367,7 @@ mod tests {
         for i in 0..30 {
             let (x, y) = (50 + (i % 6) * 11, 50 + (i / 6) * 13);
             let (px, py) = (x as f64, y as f64);
-            let ([hu, hv], _, _) = local_shape(&win, y * n + x);
+            let ([hu, hv], _, _) = local_shape(&win, y * n + x, 1);
             let norm = (1.0 + hu * hu + hv * hv).sqrt();
             let got = fast.at(&win, x, y, [-hu / norm, -hv / norm, 1.0 / norm], top);
             let g = grad(px, py);
@@ -328,7 +423,7 @@ mod tests {
             height: n,
         };
         for (x, y) in [(50usize, 50usize), (30, 60), (70, 20), (85, 85)] {
-            let (_, mean, gauss) = local_shape(&win, y * n + x);
+            let (_, mean, gauss) = local_shape(&win, y * n + x, 1);
             assert!(
                 (mean.abs() * r - 1.0).abs() < 0.02,
                 "κ_a {mean} at ({x}, {y})"
@@ -355,7 +450,7 @@ mod tests {
             let mean_want =
                 (huu * (1.0 + hv * hv) + hvv * (1.0 + hu * hu)) / (2.0 * w2 * w2.sqrt());
             let gauss_want = huu * hvv / (w2 * w2);
-            let (_, mean, gauss) = local_shape(&win, y * n + x);
+            let (_, mean, gauss) = local_shape(&win, y * n + x, 1);
             // κ_a is 0 at the saddle point: compare against the principal curvature.
             assert!(
                 (mean - mean_want).abs() < 0.02 * (1.0 / a),

@@ -60,6 +60,10 @@ pub struct GeometryConfig {
     pub mean_curvature_weight: f64,
     /// r₂, the weight of |κ_g| (Gaussian curvature).
     pub gaussian_curvature_weight: f64,
+    /// The scale of the curvatures and normals, in surface pixels (≥ 1): central
+    /// differences over ± this distance. 1 is eq. (9) at the finest scale; a rough
+    /// surface's pixel-scale curvature is mostly noise, so the presets use a few pixels.
+    pub curvature_scale_px: f64,
     /// Curvatures in units of their rms over a 256² sample of the surface at the origin
     /// (default), so that a weight means the same on any surface; `false`: in 1/px and
     /// 1/px², as eq. (10) writes them.
@@ -75,6 +79,7 @@ impl Default for GeometryConfig {
             exposure_weight: 0.0,
             mean_curvature_weight: 0.0,
             gaussian_curvature_weight: 0.0,
+            curvature_scale_px: 1.0,
             curvature_relative: true,
         }
     }
@@ -208,6 +213,13 @@ impl ImperfectConfig {
                 return Err(Error::param(name, v, "a finite weight"));
             }
         }
+        if !(g.curvature_scale_px.is_finite() && (1.0..=64.0).contains(&g.curvature_scale_px)) {
+            return Err(Error::param(
+                "geometry.curvature_scale_px",
+                g.curvature_scale_px,
+                "1 to 64 pixels",
+            ));
+        }
         if !(self.age.is_finite() && self.age >= 0.0) {
             return Err(Error::param(
                 "age",
@@ -296,6 +308,9 @@ pub struct LayerFill {
 /// taller than the streaming default.
 const IMPERFECT_BAND_ROWS: usize = 64;
 
+/// Columns computed together within a band (see `Imperfect::compute`).
+const COLUMN_BLOCK: usize = 128;
+
 /// An imperfection layer over `S` (seed 004), itself a [`Surface`] of weathered
 /// heights.
 pub struct Imperfect<S> {
@@ -363,9 +378,10 @@ impl<S: Surface> Imperfect<S> {
                 height: n,
             };
             let (mut sa, mut sg, mut k) = (0.0f64, 0.0f64, 0usize);
-            for y in 1..n - 1 {
-                for x in 1..n - 1 {
-                    let (_, a, g) = local_shape(&win, y * n + x);
+            let stride = (config.geometry.curvature_scale_px.round() as usize).max(1);
+            for y in stride..n - stride {
+                for x in stride..n - stride {
+                    let (_, a, g) = local_shape(&win, y * n + x, stride);
                     if a.is_finite() && g.is_finite() {
                         sa += a * a;
                         sg += g * g;
@@ -425,9 +441,15 @@ impl<S: Surface> Imperfect<S> {
         self.sigma
     }
 
-    /// Samples of margin a fill at `step` reads around its region.
+    /// The curvature stencil's half width in samples at `step`.
+    fn stride(&self, step: f64) -> usize {
+        ((self.config.geometry.curvature_scale_px / step).round() as usize).max(1)
+    }
+
+    /// Samples of margin a fill at `step` reads around its region: the rays' reach
+    /// (plus one for the bilinear) or the curvature stencil, whichever is wider.
     fn margin(&self, step: f64) -> usize {
-        (self.config.geometry.ray_length_px / step).ceil() as usize + 2
+        ((self.config.geometry.ray_length_px / step).ceil() as usize + 2).max(self.stride(step) + 1)
     }
 
     /// Heights, layer ids and tendencies of `region`, on all cores.
@@ -460,6 +482,7 @@ impl<S: Surface> Imperfect<S> {
     fn compute(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         let step = region.step;
         let m = self.margin(step);
+        let stride = self.stride(step);
         let (w, h) = (region.width, rows.len());
         let grown = Region {
             col0: region.col0 - m as i64,
@@ -479,11 +502,6 @@ impl<S: Surface> Imperfect<S> {
         // Heights in sample units: x, y and z in one unit for the rays and curvatures.
         let k = (self.z_scale / step) as f32;
         let scaled: Vec<f32> = heights.iter().map(|&v| v * k).collect();
-        let top = scaled
-            .iter()
-            .copied()
-            .filter(|v| v.is_finite())
-            .fold(f32::MIN, f32::max);
         let win = Window {
             data: &scaled,
             width: gw,
@@ -497,44 +515,52 @@ impl<S: Surface> Imperfect<S> {
                 g.half_exposure_px / step,
             )
         });
+        let tops = exposure
+            .as_ref()
+            .map(|e| geometry::local_max(&win, e.margin()))
+            .unwrap_or_default();
         let layers = &self.config.layers;
-        for r in 0..h {
-            let y = region.y_at(rows.start + r);
-            for col in 0..w {
-                let at = (r + m) * gw + col + m;
-                let o = &mut out[(r * w + col) * 3..(r * w + col) * 3 + 3];
-                let hv = heights[at];
-                if !hv.is_finite() {
-                    o.copy_from_slice(&[f32::NAN, 0.0, f32::NAN]);
-                    continue;
-                }
-                let x = region.x_at(col);
-                let ([hu, hvv], mean, gauss) = local_shape(&win, at);
-                let normal = DVec3::new(-hu, -hvv, 1.0).normalize();
-                let p = DVec3::new(x, y, hv as f64 * self.z_scale);
-                let flux = total_flux(&self.sources, p, normal);
-                let exposed = exposure
-                    .as_ref()
-                    .map_or(1.0, |e| e.at(&win, col + m, r + m, normal.to_array(), top));
-                // Curvatures from sample units to 1/px and 1/px².
-                let alpha = 1.0
-                    + g.exposure_weight * exposed
-                    + g.mean_curvature_weight * (mean / step).abs() / self.curvature_units[0]
-                    + g.gaussian_curvature_weight * (gauss / (step * step)).abs()
-                        / self.curvature_units[1];
-                let t = (flux * alpha).clamp(0.0, 1.0);
-                let t2 = t * self.config.noise.at(self.seed, x, y);
-                let id = layers.thresholds.iter().take_while(|&&l| t2 >= l).count();
-                let height = match self.config.pattern {
-                    Pattern::Dust => hv as f64 + t2 * layers.depths_sigma[0] * self.sigma,
-                    Pattern::Patina => hv as f64,
-                    Pattern::Peeling => {
-                        hv as f64 - layers.depths_sigma[..id].iter().sum::<f64>() * self.sigma
+        // Column blocks keep the rays' reach (the block plus its margin, over the rows
+        // within a ray length) in L2 cache.
+        for block in (0..w).step_by(COLUMN_BLOCK) {
+            for r in 0..h {
+                let y = region.y_at(rows.start + r);
+                for col in block..(block + COLUMN_BLOCK).min(w) {
+                    let at = (r + m) * gw + col + m;
+                    let o = &mut out[(r * w + col) * 3..(r * w + col) * 3 + 3];
+                    let hv = heights[at];
+                    if !hv.is_finite() {
+                        o.copy_from_slice(&[f32::NAN, 0.0, f32::NAN]);
+                        continue;
                     }
-                };
-                o[0] = height as f32;
-                o[1] = id as f32;
-                o[2] = t as f32;
+                    let x = region.x_at(col);
+                    let ([hu, hvv], mean, gauss) = local_shape(&win, at, stride);
+                    let normal = DVec3::new(-hu, -hvv, 1.0).normalize();
+                    let p = DVec3::new(x, y, hv as f64 * self.z_scale);
+                    let flux = total_flux(&self.sources, p, normal);
+                    let exposed = exposure.as_ref().map_or(1.0, |e| {
+                        e.at(&win, col + m, r + m, normal.to_array(), tops[at])
+                    });
+                    // Curvatures from sample units to 1/px and 1/px².
+                    let alpha = 1.0
+                        + g.exposure_weight * exposed
+                        + g.mean_curvature_weight * (mean / step).abs() / self.curvature_units[0]
+                        + g.gaussian_curvature_weight * (gauss / (step * step)).abs()
+                            / self.curvature_units[1];
+                    let t = (flux * alpha).clamp(0.0, 1.0);
+                    let t2 = t * self.config.noise.at(self.seed, x, y);
+                    let id = layers.thresholds.iter().take_while(|&&l| t2 >= l).count();
+                    let height = match self.config.pattern {
+                        Pattern::Dust => hv as f64 + t2 * layers.depths_sigma[0] * self.sigma,
+                        Pattern::Patina => hv as f64,
+                        Pattern::Peeling => {
+                            hv as f64 - layers.depths_sigma[..id].iter().sum::<f64>() * self.sigma
+                        }
+                    };
+                    o[0] = height as f32;
+                    o[1] = id as f32;
+                    o[2] = t as f32;
+                }
             }
         }
     }

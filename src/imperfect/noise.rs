@@ -44,6 +44,17 @@ impl Default for NoiseParams {
     }
 }
 
+/// The 256 unit gradients of Perlin noise, at angles k·2π/256.
+fn gradients() -> &'static [[f64; 2]; 256] {
+    static TABLE: std::sync::OnceLock<[[f64; 2]; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|k| {
+            let (s, c) = (k as f64 * (std::f64::consts::TAU / 256.0)).sin_cos();
+            [c, s]
+        })
+    })
+}
+
 /// Quintic fade 6t⁵ − 15t⁴ + 10t³.
 #[inline(always)]
 fn fade(t: f64) -> f64 {
@@ -112,7 +123,7 @@ impl NoiseParams {
                 // Unit gradients at 256 hashed angles; the dot with the offset.
                 let grad = |di: i64, dj: i64, ou: f64, ov: f64| {
                     let h = hash_cell(seed, i + di, j + dj, 0x9E41)[0] >> 24;
-                    let (s, c) = (h as f64 * (std::f64::consts::TAU / 256.0)).sin_cos();
+                    let [c, s] = gradients()[h as usize];
                     c * ou + s * ov
                 };
                 let n = lerp(

@@ -279,6 +279,38 @@ pub trait Surface: Send + Sync {
     }
 }
 
+/// A boxed surface is a surface (so wrappers such as [`crate::imperfect::Imperfect`]
+/// take whatever `open` returns).
+impl<S: Surface + ?Sized> Surface for Box<S> {
+    fn channels(&self) -> usize {
+        (**self).channels()
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        (**self).sample_footprint(x, y, footprint, out)
+    }
+
+    fn sample(&self, x: f64, y: f64, out: &mut [f32]) {
+        (**self).sample(x, y, out)
+    }
+
+    fn height(&self, x: f64, y: f64) -> f32 {
+        (**self).height(x, y)
+    }
+
+    fn gradient(&self, x: f64, y: f64) -> Option<[f64; 2]> {
+        (**self).gradient(x, y)
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        (**self).fill_rows(region, rows, out)
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        (**self).fill(region, out)
+    }
+}
+
 /// Rows `rows` of `region`, sample by sample with a footprint of `region.step`: the
 /// default [`Surface::fill_rows`], and the fallback of surfaces with faster special cases.
 pub fn fill_rows_by_sample<S: Surface + ?Sized>(
