@@ -8,9 +8,11 @@
 //! Then RSGF (seed 002) on the same profile: its lattice estimated by generalized NCC,
 //! 1024² synthesized by random sampling and gap filling. Then face milling (seed 000
 //! §4) from the bundled presets: a parallel path in the paper's Fig. 25 field and a
-//! spiral around its origin. Last, a shaded gallery of the seed 001 model presets
+//! spiral around its origin. Then a shaded gallery of the seed 001 model presets
 //! (`rugged-{rock,china,casting,cells-convex,cells-concave}.png`), each with its
-//! material.
+//! material. Last, seed 004: a peeled and a dusty version of the convex cells
+//! (`imperfect-{peeling,dust}.png`), each with its mask (`…-mask.png`: the layer id
+//! per pixel as grey levels 0, 1, 2, …), tendency (`…-tendency.tif`) and heights.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -18,10 +20,11 @@ use std::time::Instant;
 use crate::bake::Baker;
 use crate::bank::Method;
 use crate::error::{Error, Result};
+use crate::imperfect::{Imperfect, ImperfectConfig};
 use crate::io::{Format, ReadOptions, read_image_bytes, write_atomically, write_heights};
 use crate::models::milling::{MillingConfig, MillingSurface};
 use crate::models::rugged::ModelConfig;
-use crate::render::{render_region, render_to_file};
+use crate::render::{LayerOutputs, render_imperfect, render_region, render_to_file};
 use crate::shade::ShadeOptions;
 use crate::stats::{compare, height_stats, seam_score};
 use crate::stream::{BlendSurface, Region, RsgfSurface, ToroidalSurface};
@@ -293,6 +296,43 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
                 model.material
             ),
             path,
+            t,
+        );
+    }
+    // Seed 004: a peeled and a dusty version of the convex cells, each with its colour
+    // image, its mask (layer ids as grey levels 0, 1, 2, …) and its tendency.
+    for name in ["peeling", "dust"] {
+        let t = Instant::now();
+        let (config, _) = ImperfectConfig::load(Path::new(name))?;
+        let cells = ModelConfig::preset("cells-convex").expect("a listed preset");
+        let layer = Imperfect::new(cells.surface(0)?, &config, None, 0)?;
+        let (colour, mask, tendency) = (
+            dir.join(format!("imperfect-{name}.png")),
+            dir.join(format!("imperfect-{name}-mask.png")),
+            dir.join(format!("imperfect-{name}-tendency.tif")),
+        );
+        render_imperfect(
+            &layer,
+            &Region::new(0.0, 0.0, 512, 512),
+            &dir.join(format!("imperfect-{name}-height.png")),
+            None,
+            None,
+            LayerOutputs {
+                mask: Some(&mask),
+                tendency: Some(&tendency),
+                colour: Some(&colour),
+            },
+            &mut |_| {},
+        )?;
+        step(
+            &format!("seed 004 {name} over cells-convex, 512×512, colour (8-bit RGB PNG)"),
+            colour,
+            t,
+        );
+        let t = Instant::now();
+        step(
+            "  its mask (layer id per pixel), tendency (f32 TIFF) and heights",
+            mask,
             t,
         );
     }

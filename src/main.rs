@@ -324,6 +324,10 @@ enum Command {
         /// With --imperfect: the tendency T ∈ [0, 1] as a float image (.tif or .npy).
         #[arg(long)]
         tendency: Option<PathBuf>,
+        /// With --imperfect: the weathered colour, shaded (with the shading flags when
+        /// --shade is given), as an 8-bit RGB PNG.
+        #[arg(long)]
+        colour: Option<PathBuf>,
         /// Fill on the GPU (any Vulkan, Metal or DX12 adapter, software ones included);
         /// without an adapter, or for a rule the GPU does not run, fills on the CPU with
         /// a notice.
@@ -872,6 +876,7 @@ fn run(command: Command) -> Result<()> {
             age,
             mask,
             tendency,
+            colour,
             gpu,
         } => {
             let region = window.region(step)?;
@@ -879,12 +884,14 @@ fn run(command: Command) -> Result<()> {
             let outputs = LayerOutputs {
                 mask: mask.as_deref(),
                 tendency: tendency.as_deref(),
+                colour: colour.as_deref(),
             };
             if imperfect.is_none() {
                 let given = [
                     ("age", age.is_some()),
                     ("mask", mask.is_some()),
                     ("tendency", tendency.is_some()),
+                    ("colour", colour.is_some()),
                 ];
                 if let Some((name, _)) = given.iter().find(|(_, g)| *g) {
                     return Err(Error::param(
@@ -895,7 +902,7 @@ fn run(command: Command) -> Result<()> {
                 }
             }
             outputs.validate()?;
-            for path in [&mask, &tendency].into_iter().flatten() {
+            for path in [&mask, &tendency, &colour].into_iter().flatten() {
                 check_output(path)?;
             }
             let layer_config = match &imperfect {

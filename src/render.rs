@@ -128,6 +128,8 @@ pub struct LayerOutputs<'a> {
     pub mask: Option<&'a Path>,
     /// The tendency T ∈ [0, 1] per pixel as a float image (.tif or .npy).
     pub tendency: Option<&'a Path>,
+    /// The weathered colour, shaded, as an 8-bit RGB PNG.
+    pub colour: Option<&'a Path>,
 }
 
 impl LayerOutputs<'_> {
@@ -140,6 +142,15 @@ impl LayerOutputs<'_> {
                 "mask",
                 m.display(),
                 "a .png file (layer ids as 8-bit grey levels)",
+            ));
+        }
+        if let Some(c) = self.colour
+            && Format::from_path(c)? != Format::Png
+        {
+            return Err(Error::param(
+                "colour",
+                c.display(),
+                "a .png file (an 8-bit RGB image)",
             ));
         }
         if let Some(t) = self.tendency
@@ -180,8 +191,9 @@ pub fn render_imperfect<S: Surface>(
         }
     }
     region.validate()?;
-    // One sample of margin for the shading's central differences.
-    let pad = shading.is_some() as usize;
+    // One sample of margin for the shading's central differences (of the main output
+    // or of the colour image).
+    let pad = (shading.is_some() || outputs.colour.is_some()) as usize;
     let grown = Region {
         col0: region.col0 - pad as i64,
         row0: region.row0 - pad as i64,
@@ -201,7 +213,8 @@ pub fn render_imperfect<S: Surface>(
                 MAX_RENDER_SAMPLES / 2
             ))
         })?;
-    let (mut heights, mut layers, mut tendency) = (
+    let (mut heights, mut layers, mut tendency, mut pattern) = (
+        Vec::with_capacity(samples),
         Vec::with_capacity(samples),
         Vec::with_capacity(samples),
         Vec::with_capacity(samples),
@@ -213,6 +226,7 @@ pub fn render_imperfect<S: Surface>(
         heights.extend_from_slice(&part.heights);
         layers.extend_from_slice(&part.layers);
         tendency.extend_from_slice(&part.tendency);
+        pattern.extend_from_slice(&part.pattern);
         row += rows;
         progress(row as f64 / grown.height as f64);
     }
@@ -224,22 +238,21 @@ pub fn render_imperfect<S: Surface>(
             })
             .collect()
     };
-    match shading {
-        Some(o) => {
+    let light = match (shading, outputs.colour) {
+        (None, None) => None,
+        (o, _) => {
+            let o = o.copied().unwrap_or_default();
             let options = ShadeOptions {
                 exaggeration: o.exaggeration.map(|e| e / region.step as f32),
-                ..*o
+                ..o
             };
             let raster = Raster::from_vec(grown.width, grown.height, 1, heights.clone())?;
-            write_png8(
-                out,
-                region.width,
-                region.height,
-                1,
-                &shade(&raster, &options),
-            )?;
+            Some(shade(&raster, &options))
         }
-        None => {
+    };
+    match (shading, &light) {
+        (Some(_), Some(light)) => write_png8(out, region.width, region.height, 1, light)?,
+        _ => {
             let raster = Raster::from_vec(region.width, region.height, 1, crop(&heights))?;
             write_heights(out, &raster, spacing_um.map(|s| s * region.step))?;
         }
@@ -256,6 +269,21 @@ pub fn render_imperfect<S: Surface>(
     if let Some(t) = outputs.tendency {
         let raster = Raster::from_vec(region.width, region.height, 1, crop(&tendency))?;
         write_heights(t, &raster, None)?;
+    }
+    if let (Some(path), Some(light)) = (outputs.colour, &light) {
+        let cropped = crate::imperfect::LayerFill {
+            heights: Vec::new(),
+            layers: (0..region.height)
+                .flat_map(|r| {
+                    let s = (r + pad) * grown.width + pad;
+                    layers[s..s + region.width].iter().copied()
+                })
+                .collect(),
+            tendency: Vec::new(),
+            pattern: crop(&pattern),
+        };
+        let rgb = layer.config().colour_image(&cropped, light);
+        write_png8(path, region.width, region.height, 3, &rgb)?;
     }
     Ok(())
 }

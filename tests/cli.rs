@@ -307,6 +307,10 @@ fn demo_writes_the_gallery() {
         "rugged-casting.png",
         "rugged-cells-convex.png",
         "rugged-cells-concave.png",
+        "imperfect-peeling.png",
+        "imperfect-peeling-mask.png",
+        "imperfect-dust.png",
+        "imperfect-dust-mask.png",
     ] {
         let p = dir.path().join("surftile-demo").join(f);
         assert!(
@@ -804,4 +808,77 @@ fn model_files_and_bad_shading_are_handled() {
     }
     let r = render(p, "granite", ("8", "8"), "o.npy", &[]);
     assert_clean_failure(p, &r, "cells-convex", "o.npy");
+}
+
+/// `render --imperfect` writes the weathered heights, the mask and the tendency exactly
+/// as the library computes them (and a colour image); bad layer flags and files are
+/// one-line errors that leave nothing behind.
+#[test]
+fn imperfection_layers_from_the_command_line() {
+    use surftile::imperfect::{Imperfect, ImperfectConfig};
+    use surftile::models::rugged::ModelConfig;
+    use surftile::stream::Region;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let extra = [
+        "--imperfect",
+        "peeling",
+        "--seed",
+        "3",
+        "--mask",
+        "m.png",
+        "--tendency",
+        "t.npy",
+        "--colour",
+        "c.png",
+    ];
+    let r = render(p, "cells-convex", ("64", "48"), "h.npy", &extra);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let (config, _) = ImperfectConfig::load(Path::new("peeling")).unwrap();
+    let cells = ModelConfig::preset("cells-convex").unwrap();
+    let layer = Imperfect::new(cells.surface(3).unwrap(), &config, None, 3).unwrap();
+    let want = layer.fill_layers(&Region::new(0.0, 0.0, 64, 48)).unwrap();
+    let read = |f: &str| {
+        surftile::io::read_image(&p.join(f), &Default::default())
+            .unwrap()
+            .raster
+            .data
+    };
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&read("h.npy")), bits(&want.heights), "heights");
+    assert_eq!(bits(&read("t.npy")), bits(&want.tendency), "tendency");
+    let (w, h, colour, mask) = common::png8(&p.join("m.png"));
+    assert_eq!((w, h, colour), (64, 48, png::ColorType::Grayscale));
+    assert_eq!(mask, want.layers, "mask");
+    assert!(mask.iter().any(|&l| l > 0) && mask.contains(&0));
+    let (_, _, colour, rgb) = common::png8(&p.join("c.png"));
+    assert_eq!((colour, rgb.len()), (png::ColorType::Rgb, 64 * 48 * 3));
+
+    std::fs::write(
+        p.join("bad.toml"),
+        "pattern = \"dust\"\n[[source]]\nkind = \"ambient\"\n[geometry]\nhalf_exposure_px = 0\n",
+    )
+    .unwrap();
+    let cases: [(&[&str], &str); 7] = [
+        (&["--mask", "m2.png"], "--imperfect"),
+        (&["--imperfect", "dust", "--mask", "m2.tif"], ".png"),
+        (
+            &["--imperfect", "dust", "--tendency", "m2.png"],
+            ".tif or .npy",
+        ),
+        (&["--imperfect", "rust"], "dust, patina, peeling"),
+        (&["--imperfect", "bad.toml", "--mask", "m2.png"], "d_h > 0"),
+        (
+            &["--imperfect", "dust", "--age", "-1", "--mask", "m2.png"],
+            "age",
+        ),
+        (&["--imperfect", "dust", "--colour", "c2.npy"], "colour"),
+    ];
+    for (extra, needle) in cases {
+        let r = render(p, "rock", ("8", "8"), "o.npy", extra);
+        assert_clean_failure(p, &r, needle, "o.npy");
+        for f in ["m2.png", "m2.tif", "c2.npy"] {
+            assert!(!p.join(f).exists(), "{extra:?} left {f}");
+        }
+    }
 }

@@ -94,6 +94,11 @@ pub struct LayersConfig {
     /// Peeling: the thickness of each layer lost, in σ of the surface heights (one per
     /// threshold). Dust: one value, the thickness of full dust (T″ = 1).
     pub depths_sigma: Vec<f64>,
+    /// Colours (linear RGB in [0, 1]) for the colour image: the object's, then one per
+    /// threshold (dust and patina: the full layer's, blended by T″ as eq. 11 does;
+    /// peeling: the colour of each layer laid bare, eq. 12). Empty: a palette per
+    /// pattern.
+    pub colours: Vec<[f32; 3]>,
 }
 
 impl Default for LayersConfig {
@@ -101,6 +106,7 @@ impl Default for LayersConfig {
         LayersConfig {
             thresholds: vec![0.3],
             depths_sigma: vec![0.2],
+            colours: Vec::new(),
         }
     }
 }
@@ -160,24 +166,13 @@ impl ImperfectConfig {
     /// A file, or a preset name (`dust`, `patina`, `peeling`) where no such file
     /// exists. Returns the configuration and the folder its relative paths are in.
     pub fn load(path: &Path) -> Result<(ImperfectConfig, Option<std::path::PathBuf>)> {
-        if !path.exists()
-            && let Some(name) = path.to_str()
-        {
-            let name = name.trim_end_matches(".toml");
-            if let Some((n, text)) = PRESETS.iter().find(|(n, _)| *n == name) {
-                return Ok((ImperfectConfig::from_toml(text, n)?, None));
-            }
-            if !name.contains(['/', '\\']) {
-                return Err(Error::param(
-                    "imperfect",
-                    path.display(),
-                    "an imperfection .toml file or a preset name (dust, patina, peeling)",
-                ));
-            }
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let c = ImperfectConfig::from_toml(&text, &path.display().to_string())?;
-        Ok((c, path.parent().map(Path::to_path_buf)))
+        crate::models::preset_or_file(
+            path,
+            &PRESETS,
+            "imperfect",
+            "an imperfection .toml file",
+            ImperfectConfig::from_toml,
+        )
     }
 
     /// Checks every parameter, naming the first one out of range (sources are checked
@@ -292,6 +287,61 @@ impl ImperfectConfig {
     }
 }
 
+impl ImperfectConfig {
+    /// The colours of the colour image: `layers.colours`, or the pattern's palette
+    /// (bare grey object; dust a light beige; patina verdigris; peeling: an ochre coat
+    /// over a red primer, a grey undercoat and the metal).
+    pub fn colours(&self) -> Vec<[f32; 3]> {
+        if !self.layers.colours.is_empty() {
+            return self.layers.colours.clone();
+        }
+        let mut c = match self.pattern {
+            Pattern::Dust => vec![[0.50, 0.52, 0.56], [0.97, 0.92, 0.80]],
+            Pattern::Patina => vec![[0.72, 0.52, 0.30], [0.35, 0.66, 0.56]],
+            Pattern::Peeling => vec![
+                [0.80, 0.62, 0.25],
+                [0.66, 0.22, 0.16],
+                [0.55, 0.55, 0.55],
+                [0.80, 0.80, 0.84],
+            ],
+        };
+        // Peeling with other than three layers: repeat the last.
+        while c.len() < self.layers.thresholds.len() + 1 {
+            c.push(*c.last().expect("non-empty"));
+        }
+        c.truncate(self.layers.thresholds.len() + 1);
+        c
+    }
+
+    /// The colour image (8-bit RGB) of a fill, lit by `shading` (8-bit grey, one per
+    /// point): dust and patina blend S = T″·S_layer + (1 − T″)·S_object (eq. 11) where
+    /// the layer shows; peeling shows the colour of the layer laid bare (eq. 12).
+    pub fn colour_image(&self, fill: &LayerFill, shading: &[u8]) -> Vec<u8> {
+        let c = self.colours();
+        let mut out = Vec::with_capacity(shading.len() * 3);
+        for ((&id, &t2), &light) in fill.layers.iter().zip(&fill.pattern).zip(shading) {
+            let s = match self.pattern {
+                Pattern::Peeling => c[id as usize],
+                _ => {
+                    let t = if id > 0 && t2.is_finite() { t2 } else { 0.0 };
+                    let (a, b) = (c[0], c[1]);
+                    [
+                        t * b[0] + (1.0 - t) * a[0],
+                        t * b[1] + (1.0 - t) * a[1],
+                        t * b[2] + (1.0 - t) * a[2],
+                    ]
+                }
+            };
+            let l = light as f32 / 255.0;
+            out.extend(
+                s.iter()
+                    .map(|v| (v * l * 255.0).round().clamp(0.0, 255.0) as u8),
+            );
+        }
+        out
+    }
+}
+
 /// A region's layers: the weathered heights, the layer id (0: intact outermost layer;
 /// dust and patina: 1 where present; peeling: the layer showing) and the tendency T.
 #[derive(Clone, Debug, PartialEq)]
@@ -302,7 +352,12 @@ pub struct LayerFill {
     pub layers: Vec<u8>,
     /// Tendency T ∈ [0, 1] (eq. 3), before the noise.
     pub tendency: Vec<f32>,
+    /// T″ = T·noise(P) ∈ [0, 1], the pattern the layers are cut from (eqs. 11–12).
+    pub pattern: Vec<f32>,
 }
+
+/// Values per point of a computed band: height, layer id, T, T″.
+const OUT: usize = 4;
 
 /// Rows per band of a parallel fill: each band reads its margin again, so bands are
 /// taller than the streaming default.
@@ -456,10 +511,10 @@ impl<S: Surface> Imperfect<S> {
     pub fn fill_layers(&self, region: &Region) -> Result<LayerFill> {
         region.validate()?;
         let len = region.width * region.height;
-        let mut out = vec![0.0f32; len * 3];
+        let mut out = vec![0.0f32; len * OUT];
         for_bands(
             region,
-            3,
+            OUT,
             &mut out,
             default_threads(),
             IMPERFECT_BAND_ROWS,
@@ -469,16 +524,18 @@ impl<S: Surface> Imperfect<S> {
             heights: Vec::with_capacity(len),
             layers: Vec::with_capacity(len),
             tendency: Vec::with_capacity(len),
+            pattern: Vec::with_capacity(len),
         };
-        for p in out.chunks_exact(3) {
+        for p in out.chunks_exact(OUT) {
             f.heights.push(p[0]);
             f.layers.push(p[1] as u8);
             f.tendency.push(p[2]);
+            f.pattern.push(p[3]);
         }
         Ok(f)
     }
 
-    /// Rows `rows` of `region` as interleaved (height, layer id, tendency) into `out`.
+    /// Rows `rows` of `region` as interleaved (height, layer id, T, T″) into `out`.
     fn compute(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         let step = region.step;
         let m = self.margin(step);
@@ -527,10 +584,10 @@ impl<S: Surface> Imperfect<S> {
                 let y = region.y_at(rows.start + r);
                 for col in block..(block + COLUMN_BLOCK).min(w) {
                     let at = (r + m) * gw + col + m;
-                    let o = &mut out[(r * w + col) * 3..(r * w + col) * 3 + 3];
+                    let o = &mut out[(r * w + col) * OUT..(r * w + col + 1) * OUT];
                     let hv = heights[at];
                     if !hv.is_finite() {
-                        o.copy_from_slice(&[f32::NAN, 0.0, f32::NAN]);
+                        o.copy_from_slice(&[f32::NAN, 0.0, f32::NAN, f32::NAN]);
                         continue;
                     }
                     let x = region.x_at(col);
@@ -560,6 +617,7 @@ impl<S: Surface> Imperfect<S> {
                     o[0] = height as f32;
                     o[1] = id as f32;
                     o[2] = t as f32;
+                    o[3] = t2 as f32;
                 }
             }
         }
@@ -579,15 +637,15 @@ impl<S: Surface> Surface for Imperfect<S> {
             1.0
         };
         let region = Region::new(x, y, 1, 1).with_step(step);
-        let mut o = [0.0f32; 3];
+        let mut o = [0.0f32; OUT];
         self.compute(&region, 0..1, &mut o);
         out[0] = o[0];
     }
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
-        let mut o = vec![0.0f32; rows.len() * region.width * 3];
+        let mut o = vec![0.0f32; rows.len() * region.width * OUT];
         self.compute(region, rows, &mut o);
-        for (d, s) in out.iter_mut().zip(o.chunks_exact(3)) {
+        for (d, s) in out.iter_mut().zip(o.chunks_exact(OUT)) {
             *d = s[0];
         }
     }

@@ -480,6 +480,47 @@ mod tests {
         assert!((with(2.0, 1.0) - 2.0 * with(1.0, 0.5)).abs() < 1e-12);
     }
 
+    /// A slide projector 200 px above the plane, pointing straight down with a 60°
+    /// field, projects a mask whose left half is white and right half black: the flux
+    /// is the bare cosine falloff (mask 1, no distance falloff) under the white half,
+    /// 0 under the black half and outside the field.
+    #[test]
+    fn a_projector_projects_its_mask() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("half.png");
+        let px: Vec<u8> = (0..32 * 32)
+            .map(|i| if i % 32 < 16 { 255 } else { 0 })
+            .collect();
+        crate::io::write_png8(&path, 32, 32, 1, &px).unwrap();
+        let s = Source::new(
+            &SourceConfig {
+                position: Some([0.0, 0.0, 200.0]),
+                direction: Some([0.0, 0.0, -1.0]),
+                mask: Some("half.png".into()),
+                fov_deg: Some(60.0),
+                ..config(SourceKind::Projector)
+            },
+            1,
+            Some(dir.path()),
+        )
+        .unwrap();
+        // The field's half width on the plane: 200·tan 30° ≈ 115 px.
+        let f = |x: f64, y: f64| s.flux(DVec3::new(x, y, 0.0), DVec3::Z);
+        // Straight down, the mask's right is +x: its white left half lands at x < 0.
+        for (x, y) in [(-60.0, 20.0), (-100.0, -90.0), (-20.0, 70.0)] {
+            let cos = 200.0 / (x * x + y * y + 200.0f64 * 200.0).sqrt();
+            assert!(
+                (f(x, y) - cos).abs() < 1e-12,
+                "({x}, {y}): {} vs cos θ {cos}",
+                f(x, y)
+            );
+        }
+        assert_eq!(f(60.0, 20.0), 0.0);
+        assert_eq!(f(100.0, -90.0), 0.0);
+        assert_eq!(f(300.0, 0.0), 0.0, "outside the field");
+        assert_eq!(f(0.0, -300.0), 0.0, "outside the field");
+    }
+
     #[test]
     fn bad_sources_are_refused_with_the_reason() {
         let cases = [

@@ -412,28 +412,13 @@ impl MillingConfig {
     /// without `.toml`) when no such file exists. Returns the configuration and the
     /// folder that relative paths in it (`adapt.measurement`) are relative to.
     pub fn load(path: &Path) -> Result<(MillingConfig, Option<std::path::PathBuf>)> {
-        if !path.exists()
-            && let Some(name) = path.to_str()
-        {
-            let name = name.trim_end_matches(".toml");
-            if let Some((_, text)) = PRESETS.iter().find(|(n, _)| *n == name) {
-                return Ok((MillingConfig::from_toml(text, name)?, None));
-            }
-            if !name.contains(['/', '\\']) {
-                let names: Vec<&str> = PRESETS.iter().map(|(n, _)| *n).collect();
-                return Err(Error::param(
-                    "config",
-                    path.display(),
-                    format!(
-                        "a milling TOML file or a preset name ({})",
-                        names.join(", ")
-                    ),
-                ));
-            }
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let config = MillingConfig::from_toml(&text, &path.display().to_string())?;
-        Ok((config, path.parent().map(Path::to_path_buf)))
+        crate::models::preset_or_file(
+            path,
+            &PRESETS,
+            "config",
+            "a milling TOML file",
+            MillingConfig::from_toml,
+        )
     }
 
     /// Checks every range of seed 000, Table 3; the error names the key.
