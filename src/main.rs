@@ -409,6 +409,13 @@ enum Command {
         /// going through GPU-filled pages.
         #[arg(long)]
         direct: bool,
+        /// An imperfection layer over the source (seed 004): a .toml or a preset (dust,
+        /// patina, peeling); `m` shows its mask.
+        #[arg(long)]
+        imperfect: Option<PathBuf>,
+        /// With --imperfect: its age (scales every source's γ).
+        #[arg(long, allow_negative_numbers = true)]
+        age: Option<f64>,
     },
     /// Print the height at one point of a bank, a milling or model .toml, or a preset.
     Sample {
@@ -1073,7 +1080,16 @@ fn run(command: Command) -> Result<()> {
             screenshot,
             cache_mb,
             direct,
+            imperfect,
+            age,
         } => {
+            if imperfect.is_none() && age.is_some() {
+                return Err(Error::param(
+                    "age",
+                    "given without --imperfect",
+                    "--imperfect CONFIG as well (it belongs to an imperfection layer)",
+                ));
+            }
             if let Some(path) = &screenshot {
                 check_output(path)?;
             }
@@ -1092,6 +1108,8 @@ fn run(command: Command) -> Result<()> {
                 cache_bytes: cache_mb.saturating_mul(1 << 20),
                 shaded,
                 direct,
+                imperfect,
+                age,
             };
             surftile::view::run(&source, options)
         }

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
 use surftile::gpu::{Gpu, gpu_required};
-use surftile::stream::{Region, open};
+use surftile::stream::{Region, Surface, open};
 
 /// An Xvfb server on a free display, stopped on drop. The window tests hold one at a
 /// time (two servers started at once could race for the same display number).
@@ -382,4 +382,81 @@ fn the_shaded_view_of_a_model_matches_the_cpu_shading() {
             "{name}: max {worst}, mean {mean:.3}"
         );
     }
+}
+
+/// The mask view of an imperfection layer (`--imperfect peeling`, script `view mask`):
+/// a headless screenshot shows the layer ids of the CPU fill on the grey ramp from 0 to
+/// the highest id, within 1 grey level everywhere, with several ids on screen. A
+/// source without a layer keeps its height view and says why.
+#[test]
+fn the_mask_view_shows_the_layer_ids() {
+    use surftile::imperfect::{Imperfect, ImperfectConfig, LayerIds};
+    use surftile::models::rugged::ModelConfig;
+    if let Err(e) = Gpu::new() {
+        assert!(!gpu_required(), "SURFTILE_REQUIRE_GPU is set, but {e}");
+        eprintln!("skipping the mask view check: {e}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (96usize, 64usize);
+    let (ok, err) = view(
+        dir.path(),
+        &[
+            "cells-convex",
+            "--imperfect",
+            "peeling",
+            "--headless",
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "--x",
+            "-40",
+            "--y",
+            "20",
+            "--seed",
+            "3",
+            "--script",
+            "view mask; settle",
+            "--screenshot",
+            "shot.png",
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    let (_, _, shot) = rgba_png(&dir.path().join("shot.png"));
+    let (config, _) = ImperfectConfig::load(std::path::Path::new("peeling")).unwrap();
+    let cells = ModelConfig::preset("cells-convex").unwrap();
+    let layer = Imperfect::new(cells.surface(3).unwrap(), &config, None, 3).unwrap();
+    let mut ids = vec![0.0f32; w * h];
+    LayerIds(std::sync::Arc::new(layer))
+        .fill(&Region::new(-40.0, 20.0, w, h), &mut ids)
+        .unwrap();
+    let top = config.layers.thresholds.len() as f32;
+    let mut worst = 0i32;
+    for (i, id) in ids.iter().enumerate() {
+        let want = ((id / top).clamp(0.0, 1.0) * 255.0).round() as i32;
+        worst = worst.max((shot[i * 4] as i32 - want).abs());
+    }
+    let distinct: std::collections::BTreeSet<u32> = ids.iter().map(|&v| v as u32).collect();
+    eprintln!("mask view vs CPU ids: max {worst} grey levels, ids on screen {distinct:?}");
+    assert!(distinct.len() >= 2, "ids on screen: {distinct:?}");
+    assert!(worst <= 1, "mask view off by {worst} grey levels");
+
+    let (ok, err) = view(
+        dir.path(),
+        &[
+            "rock",
+            "--headless",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--script",
+            "view mask",
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    assert!(err.contains("no mask"), "{err}");
 }

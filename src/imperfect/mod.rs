@@ -624,13 +624,19 @@ impl<S: Surface> Imperfect<S> {
     }
 }
 
-impl<S: Surface> Surface for Imperfect<S> {
-    fn channels(&self) -> usize {
-        1
+impl<S: Surface> Imperfect<S> {
+    /// Output `k` (0 height, 1 layer id, 2 T, 3 T″) of rows `rows` of `region`.
+    fn rows_of(&self, k: usize, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let mut o = vec![0.0f32; rows.len() * region.width * OUT];
+        self.compute(region, rows, &mut o);
+        for (d, s) in out.iter_mut().zip(o.chunks_exact(OUT)) {
+            *d = s[k];
+        }
     }
 
-    /// One sample with its margin: bounded cost, (2·margin + 1)² inner heights.
-    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+    /// Output `k` of one sample with its margin: bounded cost, (2·margin + 1)² inner
+    /// heights.
+    fn sample_of(&self, k: usize, x: f64, y: f64, footprint: f64) -> f32 {
         let step = if footprint.is_finite() && footprint > 0.0 {
             footprint
         } else {
@@ -639,21 +645,18 @@ impl<S: Surface> Surface for Imperfect<S> {
         let region = Region::new(x, y, 1, 1).with_step(step);
         let mut o = [0.0f32; OUT];
         self.compute(&region, 0..1, &mut o);
-        out[0] = o[0];
+        o[k]
     }
 
-    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
-        let mut o = vec![0.0f32; rows.len() * region.width * OUT];
-        self.compute(region, rows, &mut o);
-        for (d, s) in out.iter_mut().zip(o.chunks_exact(OUT)) {
-            *d = s[0];
-        }
-    }
-
-    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+    /// Output `k` of `region`, in bands on all cores.
+    fn fill_of(&self, k: usize, region: &Region, out: &mut [f32]) -> Result<()> {
         region.validate()?;
         if out.len() != region.width * region.height {
-            return fill_parallel(self, region, out, default_threads());
+            return Err(Error::param(
+                "buffer",
+                format!("{} values", out.len()),
+                format!("{}×{} values", region.width, region.height),
+            ));
         }
         for_bands(
             region,
@@ -661,7 +664,47 @@ impl<S: Surface> Surface for Imperfect<S> {
             out,
             default_threads(),
             IMPERFECT_BAND_ROWS,
-            |rows, chunk| self.fill_rows(region, rows, chunk),
+            |rows, chunk| self.rows_of(k, region, rows, chunk),
         )
+    }
+}
+
+/// The layer ids of an imperfection layer as a one-channel surface (0.0, 1.0, …), for
+/// page streamers and the viewer's mask view.
+pub struct LayerIds<S>(pub std::sync::Arc<Imperfect<S>>);
+
+impl<S: Surface> Surface for LayerIds<S> {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        out[0] = self.0.sample_of(1, x, y, footprint);
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        self.0.rows_of(1, region, rows, out)
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        self.0.fill_of(1, region, out)
+    }
+}
+
+impl<S: Surface> Surface for Imperfect<S> {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        out[0] = self.sample_of(0, x, y, footprint);
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        self.rows_of(0, region, rows, out)
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        self.fill_of(0, region, out)
     }
 }

@@ -16,7 +16,8 @@
 //!   banks show their first channel.
 //! - **Controls.** Drag or arrow keys pan; the wheel (or `+`/`-`) zooms about the
 //!   cursor, through the mip levels; `s`/`S` next/previous seed; `h` height or shaded
-//!   view; `l`/`k` light azimuth/elevation; `m` mask view (no source has masks yet);
+//!   view; `l`/`k` light azimuth/elevation; `m` mask view (the layer ids of an
+//!   imperfection layer, `--imperfect`);
 //!   `q` or Escape quits. The title shows the position, zoom, seed and frame time.
 //! - **Scripts** ([`script::parse`]) drive the same moves for tests and frame-time
 //!   measurements; `--screenshot` writes the last frame as an 8-bit RGBA PNG.
@@ -81,6 +82,11 @@ pub struct ViewOptions {
     /// Fill every frame of a bank on the GPU even on a software adapter (where banks
     /// otherwise go through GPU-filled pages).
     pub direct: bool,
+    /// An imperfection layer over the source (a .toml or a preset): weathered heights,
+    /// and the mask view shows its layer ids.
+    pub imperfect: Option<PathBuf>,
+    /// The imperfection layer's age (scales every γ).
+    pub age: Option<f64>,
 }
 
 impl Default for ViewOptions {
@@ -100,6 +106,8 @@ impl Default for ViewOptions {
             cache_bytes: 256 << 20,
             shaded: false,
             direct: false,
+            imperfect: None,
+            age: None,
         }
     }
 }
@@ -166,6 +174,36 @@ pub struct Source {
     exaggeration: f32,
     /// Weights of the shaded view (a model's material).
     material: crate::shade::ShadeOptions,
+    /// An imperfection layer's id pages and its highest id.
+    mask: Option<(PageStreamer, f32)>,
+}
+
+/// An imperfection layer's configuration and the folder of its relative paths.
+pub type Layer = (crate::imperfect::ImperfectConfig, Option<PathBuf>);
+
+/// A shared surface as a surface (an imperfection layer owns its inner surface).
+struct ArcSurface(Arc<dyn Surface>);
+
+impl Surface for ArcSurface {
+    fn channels(&self) -> usize {
+        self.0.channels()
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        self.0.sample_footprint(x, y, footprint, out)
+    }
+
+    fn height(&self, x: f64, y: f64) -> f32 {
+        self.0.height(x, y)
+    }
+
+    fn fill_rows(&self, region: &Region, rows: std::ops::Range<usize>, out: &mut [f32]) {
+        self.0.fill_rows(region, rows, out)
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        self.0.fill(region, out)
+    }
 }
 
 impl Source {
@@ -177,6 +215,7 @@ impl Source {
         gpu: &Gpu,
         cache_bytes: usize,
         direct: bool,
+        layer: Option<&Layer>,
     ) -> Result<Source> {
         // A milling frame can take longer than a frame's budget (zoomed out, every
         // sample averages up to 4 × 4 points over hundreds of rings), and on a software
@@ -184,12 +223,13 @@ impl Source {
         // the GPU by the streamer's workers, on a device of their own, so the render
         // loop's queue never waits behind a page's dispatch.
         // RSGF and Wang banks have no GPU twin: CPU pages.
-        // Seed 001 models have no GPU twin either.
-        let on_gpu = match spec {
-            SourceSpec::Bank(b) => !matches!(b.header.rule, Rule::Rsgf | Rule::Wang),
-            SourceSpec::Milling { .. } => true,
-            SourceSpec::Model(_) => false,
-        };
+        // Seed 001 models and imperfection layers have no GPU twin either.
+        let on_gpu = layer.is_none()
+            && match spec {
+                SourceSpec::Bank(b) => !matches!(b.header.rule, Rule::Rsgf | Rule::Wang),
+                SourceSpec::Milling { .. } => true,
+                SourceSpec::Model(_) => false,
+            };
         let milling = match spec {
             SourceSpec::Milling { .. } => true,
             SourceSpec::Bank(b) => b.header.rule == Rule::Milling,
@@ -215,16 +255,32 @@ impl Source {
             }
             SourceSpec::Model(m) => (Arc::from(m.surface(seed)?), None),
         };
+        let workers = default_threads().clamp(1, 16);
+        // An imperfection layer over the surface: its heights and, for the mask view,
+        // its layer ids, both through CPU pages.
+        let (cpu, gpu_surface, mask): (Arc<dyn Surface>, _, Option<(PageStreamer, f32)>) =
+            match layer {
+                None => (cpu, gpu_surface, None),
+                Some((config, base)) => {
+                    let imperfect = Arc::new(crate::imperfect::Imperfect::new(
+                        ArcSurface(cpu),
+                        config,
+                        base.as_deref(),
+                        seed,
+                    )?);
+                    let ids = Arc::new(crate::imperfect::LayerIds(imperfect.clone()));
+                    let top = config.layers.thresholds.len().max(1) as f32;
+                    let pages = PageStreamer::new(ids, PAGE, workers, cache_bytes / 2)?;
+                    (imperfect, None, Some((pages, top)))
+                }
+            };
         let fill = match gpu_surface {
             Some(g) if paged => {
                 let filled = Arc::new(crate::gpu::GpuFilled::from_parts(fill_gpu, g));
                 Fill::Pages(PageStreamer::new(filled, PAGE, 2, cache_bytes)?)
             }
             Some(g) => Fill::Gpu(Box::new(g)),
-            None => {
-                let workers = default_threads().clamp(1, 16);
-                Fill::Pages(PageStreamer::new(cpu.clone(), PAGE, workers, cache_bytes)?)
-            }
+            None => Fill::Pages(PageStreamer::new(cpu.clone(), PAGE, workers, cache_bytes)?),
         };
         let (range, exaggeration) = display_scales(cpu.as_ref())?;
         Ok(Source {
@@ -233,7 +289,17 @@ impl Source {
             range,
             exaggeration,
             material: spec.material(),
+            mask,
         })
+    }
+
+    /// Layer ids of `region` composed from resident mask pages (NaN where none is yet),
+    /// for sources with an imperfection layer; `None` otherwise.
+    pub fn mask(&self, region: &Region, out: &mut Vec<f32>) -> Option<bool> {
+        let (pages, _) = self.mask.as_ref()?;
+        out.clear();
+        out.resize(region.len(), f32::NAN);
+        Some(compose(pages, region, out))
     }
 
     /// The grey ramp's (black, white) heights.
@@ -693,6 +759,8 @@ impl FrameTimes {
 pub struct Session {
     gpu: Gpu,
     spec: SourceSpec,
+    /// The imperfection layer over the source, if any.
+    layer: Option<Layer>,
     source: Source,
     renderer: Renderer,
     options: ViewOptions,
@@ -719,12 +787,24 @@ impl Session {
     /// A session on `gpu` showing `spec`.
     pub fn new(gpu: Gpu, spec: SourceSpec, options: ViewOptions) -> Result<Session> {
         options.validate()?;
+        let layer = match &options.imperfect {
+            Some(path) => {
+                let (mut c, base) = crate::imperfect::ImperfectConfig::load(path)?;
+                if let Some(a) = options.age {
+                    c.age = a;
+                    c.validate()?;
+                }
+                Some((c, base))
+            }
+            None => None,
+        };
         let source = Source::open(
             &spec,
             options.seed,
             &gpu,
             options.cache_bytes,
             options.direct,
+            layer.as_ref(),
         )?;
         let renderer = Renderer::new(&gpu.device, options.width, options.height);
         // The material's light (225° azimuth, 45° up by default) as azimuth/elevation.
@@ -736,6 +816,7 @@ impl Session {
         Ok(Session {
             gpu,
             spec,
+            layer,
             source,
             renderer,
             x: options.x,
@@ -838,15 +919,21 @@ impl Session {
             &self.gpu,
             self.options.cache_bytes,
             self.options.direct,
+            self.layer.as_ref(),
         )?;
         self.seed = seed;
         Ok(())
     }
 
-    /// Switches the view mode; the mask view needs a source with a mask.
+    /// Switches the view mode; the mask view needs a source with a mask (an
+    /// imperfection layer: `--imperfect`).
     pub fn show(&mut self, mode: Mode) {
-        if mode == Mode::Mask {
-            self.notice = Some("this source has no mask".into());
+        if mode == Mode::Mask && self.source.mask.is_none() {
+            let notice = "this source has no mask (add --imperfect)";
+            if self.options.headless {
+                eprintln!("view: {notice}");
+            }
+            self.notice = Some(notice.into());
         } else {
             self.mode = mode;
             self.notice = None;
@@ -933,9 +1020,21 @@ impl Session {
     ) -> Result<()> {
         let start = Instant::now();
         let region = self.margin_region();
-        self.complete =
-            self.source
-                .heights(&self.gpu, &region, &mut self.heights, &mut self.scratch)?;
+        let mask = (self.mode == Mode::Mask)
+            .then(|| self.source.mask(&region, &mut self.heights))
+            .flatten();
+        self.complete = match mask {
+            Some(complete) => complete,
+            None => {
+                self.source
+                    .heights(&self.gpu, &region, &mut self.heights, &mut self.scratch)?
+            }
+        };
+        // The mask view: layer ids on a grey ramp from 0 (black) to the highest id.
+        let (lo, hi) = match (&self.source.mask, self.mode) {
+            (Some((_, top)), Mode::Mask) => (0.0, *top),
+            _ => self.source.range,
+        };
         let (w, h) = self.renderer.size();
         let (az, el) = (self.light.0.to_radians(), self.light.1.to_radians());
         let l = glam::Vec3::new(
@@ -950,8 +1049,8 @@ impl Session {
             width: w,
             height: h,
             mode: (self.mode == Mode::Shaded) as u32,
-            lo: self.source.range.0,
-            hi: self.source.range.1,
+            lo,
+            hi,
             // Slopes come per sample, `scale` surface pixels apart.
             exaggeration: self.source.exaggeration / self.scale as f32,
             ambient: o.ambient,
