@@ -303,6 +303,48 @@ fn bad_view_arguments_are_one_line_errors() {
     }
 }
 
+/// Whether a GPU adapter is missing (then the caller skips, unless GPU tests are
+/// required).
+fn no_adapter(what: &str) -> bool {
+    match Gpu::new() {
+        Ok(_) => false,
+        Err(e) => {
+            assert!(!gpu_required(), "SURFTILE_REQUIRE_GPU is set, but {e}");
+            eprintln!("skipping {what}: {e}");
+            true
+        }
+    }
+}
+
+/// A headless 96 × 64 screenshot of `source` from (−40, 20) under seed 3, after
+/// `script` and whatever `extra` arguments say: its RGBA bytes.
+fn headless_shot(dir: &Path, source: &str, script: &str, extra: &[&str]) -> Vec<u8> {
+    let mut args = vec![
+        source,
+        "--headless",
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "--x",
+        "-40",
+        "--y",
+        "20",
+        "--seed",
+        "3",
+        "--script",
+        script,
+        "--screenshot",
+        "shot.png",
+    ];
+    args.extend_from_slice(extra);
+    let (ok, err) = view(dir, &args, &[]);
+    assert!(ok, "{source} {extra:?}: {err}");
+    let (w, h, shot) = rgba_png(&dir.join("shot.png"));
+    assert_eq!((w, h), (96, 64));
+    shot
+}
+
 /// The shaded view is the WGSL twin of `shade()` (`shaders/shade.wgsl`'s
 /// `normal_from_gradient`, `half_vector`, `reflectance`): a headless screenshot of each
 /// seed 001 model preset, in the shaded view with the preset's material and light,
@@ -313,40 +355,13 @@ fn bad_view_arguments_are_one_line_errors() {
 fn the_shaded_view_of_a_model_matches_the_cpu_shading() {
     use surftile::models::rugged::ModelConfig;
     use surftile::shade::{ShadeOptions, shade};
-    if let Err(e) = Gpu::new() {
-        assert!(!gpu_required(), "SURFTILE_REQUIRE_GPU is set, but {e}");
-        eprintln!("skipping the shaded view check: {e}");
+    if no_adapter("the shaded view check") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (96usize, 64usize);
     for name in ModelConfig::preset_names() {
-        let (ok, err) = view(
-            dir.path(),
-            &[
-                name,
-                "--headless",
-                "--shaded",
-                "--width",
-                "96",
-                "--height",
-                "64",
-                "--x",
-                "-40",
-                "--y",
-                "20",
-                "--seed",
-                "3",
-                "--script",
-                "settle",
-                "--screenshot",
-                "shot.png",
-            ],
-            &[],
-        );
-        assert!(ok, "{name}: {err}");
-        let (sw, sh, shot) = rgba_png(&dir.path().join("shot.png"));
-        assert_eq!((sw, sh), (w, h));
+        let shot = headless_shot(dir.path(), name, "settle", &["--shaded"]);
         let model = ModelConfig::preset(name).unwrap();
         let cpu = model.surface(3).unwrap();
         let (_, exaggeration) = surftile::view::display_scales(cpu.as_ref()).unwrap();
@@ -392,39 +407,17 @@ fn the_shaded_view_of_a_model_matches_the_cpu_shading() {
 fn the_mask_view_shows_the_layer_ids() {
     use surftile::imperfect::{Imperfect, ImperfectConfig, LayerIds};
     use surftile::models::rugged::ModelConfig;
-    if let Err(e) = Gpu::new() {
-        assert!(!gpu_required(), "SURFTILE_REQUIRE_GPU is set, but {e}");
-        eprintln!("skipping the mask view check: {e}");
+    if no_adapter("the mask view check") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (96usize, 64usize);
-    let (ok, err) = view(
+    let shot = headless_shot(
         dir.path(),
-        &[
-            "cells-convex",
-            "--imperfect",
-            "peeling",
-            "--headless",
-            "--width",
-            "96",
-            "--height",
-            "64",
-            "--x",
-            "-40",
-            "--y",
-            "20",
-            "--seed",
-            "3",
-            "--script",
-            "view mask; settle",
-            "--screenshot",
-            "shot.png",
-        ],
-        &[],
+        "cells-convex",
+        "view mask; settle",
+        &["--imperfect", "peeling"],
     );
-    assert!(ok, "{err}");
-    let (_, _, shot) = rgba_png(&dir.path().join("shot.png"));
     let (config, _) = ImperfectConfig::load(std::path::Path::new("peeling")).unwrap();
     let cells = ModelConfig::preset("cells-convex").unwrap();
     let layer = Imperfect::new(cells.surface(3).unwrap(), &config, None, 3).unwrap();
