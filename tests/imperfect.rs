@@ -203,3 +203,25 @@ fn bad_configurations_are_refused_with_the_reason() {
     assert!(e.contains("inside"), "{e}");
     assert_eq!(c.pattern, Pattern::Peeling);
 }
+
+/// Steps finer than 1/8 pixel are refused with the reason (their margins would grow as
+/// ray_length / step), and a point query at such a footprint is NaN, never a huge
+/// allocation; at 1/8 a fill works and agrees with its pieces.
+#[test]
+fn too_fine_steps_are_refused() {
+    use surftile::imperfect::MIN_STEP;
+    let layer = Imperfect::new(rock(), &preset("dust"), None, 0).unwrap();
+    let fine = Region::new(3.0, 4.0, 16, 16).with_step(0.01);
+    let e = layer.fill_layers(&fine).unwrap_err().to_string();
+    assert!(e.contains("step") && e.contains("1/8"), "{e}");
+    let mut out = vec![0.0f32; 256];
+    assert!(layer.fill(&fine, &mut out).is_err());
+    let mut one = [0.0f32];
+    layer.sample_footprint(3.0, 4.0, 0.01, &mut one);
+    assert!(one[0].is_nan());
+    let ok = Region::new(3.0, 4.0, 16, 16).with_step(MIN_STEP);
+    let whole = layer.fill_layers(&ok).unwrap();
+    let half = layer.fill_layers(&ok.sub(0, 8, 16, 8).unwrap()).unwrap();
+    assert_eq!(whole.layers[128..], half.layers[..]);
+    assert!(whole.heights.iter().all(|h| h.is_finite()));
+}

@@ -356,6 +356,11 @@ pub struct LayerFill {
     pub pattern: Vec<f32>,
 }
 
+/// The finest sampling step a layer is computed at, in surface pixels: its rays and
+/// stencils are measured in samples, so finer steps would need margins of
+/// ray_length / step samples (at 1/8, 8 × the ray length).
+pub const MIN_STEP: f64 = 0.125;
+
 /// Values per point of a computed band: height, layer id, T, T″.
 const OUT: usize = 4;
 
@@ -507,9 +512,22 @@ impl<S: Surface> Imperfect<S> {
         ((self.config.geometry.ray_length_px / step).ceil() as usize + 2).max(self.stride(step) + 1)
     }
 
+    /// Refuses steps finer than [`MIN_STEP`].
+    fn check_step(region: &Region) -> Result<()> {
+        if region.step < MIN_STEP {
+            return Err(Error::param(
+                "step",
+                region.step,
+                "at least 1/8 pixel for an imperfection layer (its rays and curvature stencils are measured in samples)",
+            ));
+        }
+        Ok(())
+    }
+
     /// Heights, layer ids and tendencies of `region`, on all cores.
     pub fn fill_layers(&self, region: &Region) -> Result<LayerFill> {
         region.validate()?;
+        Self::check_step(region)?;
         let len = region.width * region.height;
         let mut out = vec![0.0f32; len * OUT];
         for_bands(
@@ -535,9 +553,16 @@ impl<S: Surface> Imperfect<S> {
         Ok(f)
     }
 
-    /// Rows `rows` of `region` as interleaved (height, layer id, T, T″) into `out`.
+    /// Rows `rows` of `region` as interleaved (height, layer id, T, T″) into `out`;
+    /// NaN (layer 0) below [`MIN_STEP`].
     fn compute(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         let step = region.step;
+        if step.is_nan() || step < MIN_STEP {
+            for o in out.chunks_exact_mut(OUT) {
+                o.copy_from_slice(&[f32::NAN, 0.0, f32::NAN, f32::NAN]);
+            }
+            return;
+        }
         let m = self.margin(step);
         let stride = self.stride(step);
         let (w, h) = (region.width, rows.len());
@@ -651,6 +676,7 @@ impl<S: Surface> Imperfect<S> {
     /// Output `k` of `region`, in bands on all cores.
     fn fill_of(&self, k: usize, region: &Region, out: &mut [f32]) -> Result<()> {
         region.validate()?;
+        Self::check_step(region)?;
         if out.len() != region.width * region.height {
             return Err(Error::param(
                 "buffer",

@@ -787,6 +787,13 @@ impl Session {
     /// A session on `gpu` showing `spec`.
     pub fn new(gpu: Gpu, spec: SourceSpec, options: ViewOptions) -> Result<Session> {
         options.validate()?;
+        if options.imperfect.is_some() && options.scale < crate::imperfect::MIN_STEP {
+            return Err(Error::param(
+                "scale",
+                options.scale,
+                "at least 1/8 with --imperfect (a layer is computed down to 1/8 pixel)",
+            ));
+        }
         let layer = match &options.imperfect {
             Some(path) => {
                 let (mut c, base) = crate::imperfect::ImperfectConfig::load(path)?;
@@ -897,7 +904,13 @@ impl Session {
 
     /// Magnifies by `factor` about the screen point (cx, cy).
     pub fn zoom(&mut self, factor: f64, cx: f64, cy: f64) {
-        let mut scale = (self.scale / factor).clamp(1.0 / 64.0, MAX_SCALE);
+        // An imperfection layer is computed down to 1/8 pixel.
+        let finest = if self.layer.is_some() {
+            crate::imperfect::MIN_STEP
+        } else {
+            1.0 / 64.0
+        };
+        let mut scale = (self.scale / factor).clamp(finest, MAX_SCALE);
         // Zooms by powers of two in several steps land on the power exactly, where
         // pages' samples and mip levels line up with the screen's.
         let pow2 = scale.log2().round().exp2();
