@@ -10,7 +10,7 @@ use crate::error::Result;
 use crate::raster::Raster;
 use crate::stream::{Metric, RsgfModel, RsgfParams};
 
-/// What the user asked for; the lattice is resolved by [`bake`].
+/// What the user asked for; the lattice is resolved by `bake`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RsgfOptions {
     /// Block side B in pixels (default 40).

@@ -275,7 +275,7 @@ impl GpuSurface {
     }
 
     /// A milling surface on the GPU (`shaders/milling.wgsl`): its tables uploaded once;
-    /// each fill's ring lists are found on the host (see [`super::milling`]).
+    /// each fill's ring lists are found on the host (see `gpu::milling`).
     pub fn milling(device: &wgpu::Device, surface: MillingSurface) -> Result<GpuSurface> {
         Ok(GpuSurface {
             backing: Backing::Milling(Box::new(GpuMilling::new(device, surface)?)),

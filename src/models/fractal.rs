@@ -433,7 +433,7 @@ impl Surface for FractalSurface {
         self.at_level(x, y, self.params.levels as usize) as f32
     }
 
-    /// Step-1 rows from one [`Self::window`] over the band (plus one column and row for
+    /// Step-1 rows from one `Self::window` over the band (plus one column and row for
     /// the bilinear), each sample with the point path's arithmetic, so the bits equal
     /// `height()`'s; other steps sample point by point.
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {

@@ -3,13 +3,15 @@
 //!
 //! - **Sources** ([`SourceSpec`]): a bank (`.bank`), a milling configuration (`.toml`)
 //!   or preset name, or a seed 001 model (`.toml`, or `rock`, `china`, `casting`,
-//!   `cells-convex`, `cells-concave`). On a hardware GPU, banks are filled on the GPU every frame
+//!   `cells-convex`, `cells-concave`), optionally under an imperfection layer
+//!   (`--imperfect`). On a hardware GPU, banks are filled on the GPU every frame
 //!   ([`GpuSurface`]). Milling models, and banks on a software adapter (where a frame
 //!   costs ~100 ms), go through the [`PageStreamer`] with pages filled on the GPU (a
-//!   zoomed-out milling frame can cost seconds); sources the GPU does not run
-//!   (RSGF, Wang, seed 001 models) go through it with pages filled on the CPU. The streamer's workers fill
-//!   pages while the render loop draws what is resident (a coarser level, or grey, where
-//!   a page is still coming): no frame waits for a page.
+//!   zoomed-out milling frame can cost seconds); sources the GPU does not run (RSGF,
+//!   Wang, seed 001 models, imperfection layers) go through it with pages filled on
+//!   the CPU. The streamer's workers fill pages while the render loop draws what is
+//!   resident (a coarser level, or grey, where a page is still coming): no frame waits
+//!   for a page.
 //! - **Display.** `shaders/shade.wgsl` draws the heights as a grey ramp (the source's
 //!   mean ± 3σ, from a 256² sample at the origin) or Phong-shaded (seed 001,
 //!   eqs. (1)–(4)) with the source's material (a model's, else the default). Colour
@@ -17,8 +19,8 @@
 //! - **Controls.** Drag or arrow keys pan; the wheel (or `+`/`-`) zooms about the
 //!   cursor, through the mip levels; `s`/`S` next/previous seed; `h` height or shaded
 //!   view; `l`/`k` light azimuth/elevation; `m` mask view (the layer ids of an
-//!   imperfection layer, `--imperfect`);
-//!   `q` or Escape quits. The title shows the position, zoom, seed and frame time.
+//!   imperfection layer, on a grey ramp from 0 to the highest id); `q` or Escape
+//!   quits. The title shows the position, zoom, seed and frame time.
 //! - **Scripts** ([`script::parse`]) drive the same moves for tests and frame-time
 //!   measurements; `--screenshot` writes the last frame as an 8-bit RGBA PNG.
 

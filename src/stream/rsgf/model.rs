@@ -356,7 +356,7 @@ impl RsgfModel {
 
     /// The sequential whole-image RSGF (§4) of `width × height` pixels from the origin:
     /// every random block, then every gap in raster order, then every pixel by
-    /// [`RsgfModel::pixel`]. The slow reference that streamed fills are tested against.
+    /// `RsgfModel::pixel`. The slow reference that streamed fills are tested against.
     pub fn synthesize(&self, seed: u32, width: usize, height: usize) -> Raster {
         let (i0, i1) = self.block_range(0, width as i64 - 1);
         let (j0, j1) = self.block_range(0, height as i64 - 1);
