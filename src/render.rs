@@ -213,77 +213,61 @@ pub fn render_imperfect<S: Surface>(
                 MAX_RENDER_SAMPLES / 2
             ))
         })?;
-    let (mut heights, mut layers, mut tendency, mut pattern) = (
-        Vec::with_capacity(samples),
-        Vec::with_capacity(samples),
-        Vec::with_capacity(samples),
-        Vec::with_capacity(samples),
-    );
+    let mut all = crate::imperfect::LayerFill {
+        heights: Vec::with_capacity(samples),
+        layers: Vec::with_capacity(samples),
+        tendency: Vec::with_capacity(samples),
+        pattern: Vec::with_capacity(samples),
+    };
     let mut row = 0;
     while row < grown.height {
         let rows = STRIP_ROWS.min(grown.height - row);
         let part = layer.fill_layers(&grown.sub(0, row, grown.width, rows)?)?;
-        heights.extend_from_slice(&part.heights);
-        layers.extend_from_slice(&part.layers);
-        tendency.extend_from_slice(&part.tendency);
-        pattern.extend_from_slice(&part.pattern);
+        all.heights.extend_from_slice(&part.heights);
+        all.layers.extend_from_slice(&part.layers);
+        all.tendency.extend_from_slice(&part.tendency);
+        all.pattern.extend_from_slice(&part.pattern);
         row += rows;
         progress(row as f64 / grown.height as f64);
     }
-    let crop = |v: &[f32]| -> Vec<f32> {
+    // The region inside the shading margin.
+    fn crop<T: Copy>(v: &[T], grown_width: usize, region: &Region, pad: usize) -> Vec<T> {
         (0..region.height)
             .flat_map(|r| {
-                let s = (r + pad) * grown.width + pad;
+                let s = (r + pad) * grown_width + pad;
                 v[s..s + region.width].iter().copied()
             })
             .collect()
-    };
-    let light = match (shading, outputs.colour) {
-        (None, None) => None,
-        (o, _) => {
-            let o = o.copied().unwrap_or_default();
-            let options = ShadeOptions {
-                exaggeration: o.exaggeration.map(|e| e / region.step as f32),
-                ..o
-            };
-            let raster = Raster::from_vec(grown.width, grown.height, 1, heights.clone())?;
-            Some(shade(&raster, &options))
+    }
+    let (gw, w, h) = (grown.width, region.width, region.height);
+    let ids = crop(&all.layers, gw, region, pad);
+    if shading.is_none() {
+        let raster = Raster::from_vec(w, h, 1, crop(&all.heights, gw, region, pad))?;
+        write_heights(out, &raster, spacing_um.map(|s| s * region.step))?;
+    }
+    if shading.is_some() || outputs.colour.is_some() {
+        let o = shading.copied().unwrap_or_default();
+        let options = ShadeOptions {
+            exaggeration: o.exaggeration.map(|e| e / region.step as f32),
+            ..o
+        };
+        let heights = std::mem::take(&mut all.heights);
+        let light = shade(&Raster::from_vec(gw, grown.height, 1, heights)?, &options);
+        if shading.is_some() {
+            write_png8(out, w, h, 1, &light)?;
         }
-    };
-    match (shading, &light) {
-        (Some(_), Some(light)) => write_png8(out, region.width, region.height, 1, light)?,
-        _ => {
-            let raster = Raster::from_vec(region.width, region.height, 1, crop(&heights))?;
-            write_heights(out, &raster, spacing_um.map(|s| s * region.step))?;
+        if let Some(path) = outputs.colour {
+            let pattern = crop(&all.pattern, gw, region, pad);
+            let rgb = layer.config().colour_image(&ids, &pattern, &light);
+            write_png8(path, w, h, 3, &rgb)?;
         }
     }
     if let Some(m) = outputs.mask {
-        let ids: Vec<u8> = (0..region.height)
-            .flat_map(|r| {
-                let s = (r + pad) * grown.width + pad;
-                layers[s..s + region.width].iter().copied()
-            })
-            .collect();
-        write_png8(m, region.width, region.height, 1, &ids)?;
+        write_png8(m, w, h, 1, &ids)?;
     }
     if let Some(t) = outputs.tendency {
-        let raster = Raster::from_vec(region.width, region.height, 1, crop(&tendency))?;
+        let raster = Raster::from_vec(w, h, 1, crop(&all.tendency, gw, region, pad))?;
         write_heights(t, &raster, None)?;
-    }
-    if let (Some(path), Some(light)) = (outputs.colour, &light) {
-        let cropped = crate::imperfect::LayerFill {
-            heights: Vec::new(),
-            layers: (0..region.height)
-                .flat_map(|r| {
-                    let s = (r + pad) * grown.width + pad;
-                    layers[s..s + region.width].iter().copied()
-                })
-                .collect(),
-            tendency: Vec::new(),
-            pattern: crop(&pattern),
-        };
-        let rgb = layer.config().colour_image(&cropped, light);
-        write_png8(path, region.width, region.height, 3, &rgb)?;
     }
     Ok(())
 }

@@ -24,7 +24,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::error::{Error, Result};
-use crate::stream::{Region, Surface, default_threads, fill_parallel, for_bands};
+use crate::stream::{OriginSample, Region, Surface, default_threads, fill_parallel, for_bands};
 use geometry::{Exposure, Window, local_shape, ray_pattern};
 use noise::NoiseParams;
 use sources::{Source, SourceConfig, total_flux};
@@ -313,13 +313,14 @@ impl ImperfectConfig {
         c
     }
 
-    /// The colour image (8-bit RGB) of a fill, lit by `shading` (8-bit grey, one per
-    /// point): dust and patina blend S = T″·S_layer + (1 − T″)·S_object (eq. 11) where
-    /// the layer shows; peeling shows the colour of the layer laid bare (eq. 12).
-    pub fn colour_image(&self, fill: &LayerFill, shading: &[u8]) -> Vec<u8> {
+    /// The colour image (8-bit RGB) of points with layer ids `layers` and patterns T″
+    /// `pattern` (a [`LayerFill`]'s), lit by `shading` (8-bit grey, one per point): dust
+    /// and patina blend S = T″·S_layer + (1 − T″)·S_object (eq. 11) where the layer
+    /// shows; peeling shows the colour of the layer laid bare (eq. 12).
+    pub fn colour_image(&self, layers: &[u8], pattern: &[f32], shading: &[u8]) -> Vec<u8> {
         let c = self.colours();
         let mut out = Vec::with_capacity(shading.len() * 3);
-        for ((&id, &t2), &light) in fill.layers.iter().zip(&fill.pattern).zip(shading) {
+        for ((&id, &t2), &light) in layers.iter().zip(pattern).zip(shading) {
             let s = match self.pattern {
                 Pattern::Peeling => c[id as usize],
                 _ => {
@@ -396,41 +397,17 @@ impl<S: Surface> Imperfect<S> {
         seed: u32,
     ) -> Result<Imperfect<S>> {
         config.validate()?;
-        let n = 256;
-        let c = inner.channels();
-        let mut buf = vec![0.0f32; n * n * c];
-        inner.fill(&Region::new(0.0, 0.0, n, n), &mut buf)?;
-        let h = |x: usize, y: usize| buf[(y * n + x) * c] as f64;
-        let (mut sum, mut sq, mut slope2, mut count) = (0.0, 0.0, 0.0, 0usize);
-        for y in 1..n - 1 {
-            for x in 1..n - 1 {
-                let (gx, gy) = (
-                    0.5 * (h(x + 1, y) - h(x - 1, y)),
-                    0.5 * (h(x, y + 1) - h(x, y - 1)),
-                );
-                if h(x, y).is_finite() && gx.is_finite() && gy.is_finite() {
-                    sum += h(x, y);
-                    sq += h(x, y) * h(x, y);
-                    slope2 += gx * gx + gy * gy;
-                    count += 1;
-                }
-            }
-        }
-        let count = count.max(1) as f64;
-        let sd = (sq / count - (sum / count).powi(2)).max(0.0).sqrt();
-        let rms_slope = (slope2 / count).sqrt();
+        let origin = OriginSample::of(&inner)?;
+        let n = OriginSample::SIZE;
+        let sd = origin.sd;
         let sigma = if sd > 0.0 && sd.is_finite() { sd } else { 1.0 };
-        let z_scale = config
-            .z_scale
-            .unwrap_or(if rms_slope > 0.0 && rms_slope.is_finite() {
-                0.5 / rms_slope
-            } else {
-                1.0
-            });
+        let z_scale = config.z_scale.unwrap_or(origin.half_slope_scale());
         let mut curvature_units = [1.0, 1.0];
         if config.geometry.curvature_relative {
-            let scaled: Vec<f32> = (0..n * n)
-                .map(|i| (buf[i * c] as f64 * z_scale) as f32)
+            let scaled: Vec<f32> = origin
+                .heights
+                .iter()
+                .map(|&v| (v as f64 * z_scale) as f32)
                 .collect();
             let win = Window {
                 data: &scaled,

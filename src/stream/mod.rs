@@ -279,37 +279,107 @@ pub trait Surface: Send + Sync {
     }
 }
 
-/// A boxed surface is a surface (so wrappers such as [`crate::imperfect::Imperfect`]
-/// take whatever `open` returns).
-impl<S: Surface + ?Sized> Surface for Box<S> {
-    fn channels(&self) -> usize {
-        (**self).channels()
+/// A surface's `SIZE²` sample at the origin (channel 0) and its height statistics:
+/// what the viewer's grey ramp and shading scale, and an imperfection layer's depth
+/// unit and slope scale, are measured on.
+#[derive(Clone, Debug)]
+pub struct OriginSample {
+    /// The heights, row-major, `SIZE × SIZE`.
+    pub heights: Vec<f32>,
+    /// Mean height over the interior samples with finite central differences.
+    pub mean: f64,
+    /// Their standard deviation.
+    pub sd: f64,
+    /// Their rms slope (height units per pixel, central differences).
+    pub rms_slope: f64,
+}
+
+impl OriginSample {
+    /// Side of the sample, in pixels.
+    pub const SIZE: usize = 256;
+
+    /// Fills and measures the sample of `s`.
+    pub fn of<S: Surface + ?Sized>(s: &S) -> Result<OriginSample> {
+        let n = Self::SIZE;
+        let c = s.channels();
+        let mut v = vec![0.0f32; n * n * c];
+        s.fill(&Region::new(0.0, 0.0, n, n), &mut v)?;
+        let heights: Vec<f32> = v.iter().step_by(c).copied().collect();
+        let h = |x: usize, y: usize| heights[y * n + x] as f64;
+        let (mut sum, mut sq, mut slope2, mut count) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+        for y in 1..n - 1 {
+            for x in 1..n - 1 {
+                let z = h(x, y);
+                let gx = 0.5 * (h(x + 1, y) - h(x - 1, y));
+                let gy = 0.5 * (h(x, y + 1) - h(x, y - 1));
+                if z.is_finite() && gx.is_finite() && gy.is_finite() {
+                    sum += z;
+                    sq += z * z;
+                    slope2 += gx * gx + gy * gy;
+                    count += 1;
+                }
+            }
+        }
+        let count = count.max(1) as f64;
+        let mean = sum / count;
+        Ok(OriginSample {
+            mean,
+            sd: (sq / count - mean * mean).max(0.0).sqrt(),
+            rms_slope: (slope2 / count).sqrt(),
+            heights,
+        })
     }
 
-    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
-        (**self).sample_footprint(x, y, footprint, out)
-    }
-
-    fn sample(&self, x: f64, y: f64, out: &mut [f32]) {
-        (**self).sample(x, y, out)
-    }
-
-    fn height(&self, x: f64, y: f64) -> f32 {
-        (**self).height(x, y)
-    }
-
-    fn gradient(&self, x: f64, y: f64) -> Option<[f64; 2]> {
-        (**self).gradient(x, y)
-    }
-
-    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
-        (**self).fill_rows(region, rows, out)
-    }
-
-    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
-        (**self).fill(region, out)
+    /// The factor that makes the rms slope 0.5 (1 for a flat or undefined one): the
+    /// automatic exaggeration of shading and height scale of an imperfection layer.
+    pub fn half_slope_scale(&self) -> f64 {
+        if self.rms_slope > 0.0 && self.rms_slope.is_finite() {
+            0.5 / self.rms_slope
+        } else {
+            1.0
+        }
     }
 }
+
+/// Boxed and shared surfaces are surfaces (so wrappers such as
+/// [`crate::imperfect::Imperfect`] take whatever `open` returns, or an `Arc` a viewer
+/// also holds).
+macro_rules! forward_surface {
+    ($($ptr:ident),*) => {$(
+        impl<S: Surface + ?Sized> Surface for $ptr<S> {
+            fn channels(&self) -> usize {
+                (**self).channels()
+            }
+
+            fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+                (**self).sample_footprint(x, y, footprint, out)
+            }
+
+            fn sample(&self, x: f64, y: f64, out: &mut [f32]) {
+                (**self).sample(x, y, out)
+            }
+
+            fn height(&self, x: f64, y: f64) -> f32 {
+                (**self).height(x, y)
+            }
+
+            fn gradient(&self, x: f64, y: f64) -> Option<[f64; 2]> {
+                (**self).gradient(x, y)
+            }
+
+            fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+                (**self).fill_rows(region, rows, out)
+            }
+
+            fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+                (**self).fill(region, out)
+            }
+        }
+    )*};
+}
+
+use std::sync::Arc;
+forward_surface!(Box, Arc);
 
 /// Rows `rows` of `region`, sample by sample with a footprint of `region.step`: the
 /// default [`Surface::fill_rows`], and the fallback of surfaces with faster special cases.

@@ -183,31 +183,6 @@ pub struct Source {
 /// An imperfection layer's configuration and the folder of its relative paths.
 pub type Layer = (crate::imperfect::ImperfectConfig, Option<PathBuf>);
 
-/// A shared surface as a surface (an imperfection layer owns its inner surface).
-struct ArcSurface(Arc<dyn Surface>);
-
-impl Surface for ArcSurface {
-    fn channels(&self) -> usize {
-        self.0.channels()
-    }
-
-    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
-        self.0.sample_footprint(x, y, footprint, out)
-    }
-
-    fn height(&self, x: f64, y: f64) -> f32 {
-        self.0.height(x, y)
-    }
-
-    fn fill_rows(&self, region: &Region, rows: std::ops::Range<usize>, out: &mut [f32]) {
-        self.0.fill_rows(region, rows, out)
-    }
-
-    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
-        self.0.fill(region, out)
-    }
-}
-
 impl Source {
     /// Opens `spec` under `seed`: on the GPU where it runs there, else through a page
     /// streamer of `cache_bytes`.
@@ -252,30 +227,32 @@ impl Source {
             ),
             SourceSpec::Milling { .. } => {
                 let m = spec.milling(seed)?.expect("a milling spec");
-                let g = GpuSurface::milling(&fill_gpu.device, m.clone())?;
-                (Arc::new(m), Some(g))
+                let g = on_gpu
+                    .then(|| GpuSurface::milling(&fill_gpu.device, m.clone()))
+                    .transpose()?;
+                (Arc::new(m), g)
             }
             SourceSpec::Model(m) => (Arc::from(m.surface(seed)?), None),
         };
         let workers = default_threads().clamp(1, 16);
         // An imperfection layer over the surface: its heights and, for the mask view,
         // its layer ids, both through CPU pages.
-        let (cpu, gpu_surface, mask): (Arc<dyn Surface>, _, Option<(PageStreamer, f32)>) =
-            match layer {
-                None => (cpu, gpu_surface, None),
-                Some((config, base)) => {
-                    let imperfect = Arc::new(crate::imperfect::Imperfect::new(
-                        ArcSurface(cpu),
-                        config,
-                        base.as_deref(),
-                        seed,
-                    )?);
-                    let ids = Arc::new(crate::imperfect::LayerIds(imperfect.clone()));
-                    let top = config.layers.thresholds.len().max(1) as f32;
-                    let pages = PageStreamer::new(ids, PAGE, workers, cache_bytes / 2)?;
-                    (imperfect, None, Some((pages, top)))
-                }
-            };
+        // (No GPU surface was made: `on_gpu` is false under a layer.)
+        let (cpu, mask): (Arc<dyn Surface>, Option<(PageStreamer, f32)>) = match layer {
+            None => (cpu, None),
+            Some((config, base)) => {
+                let imperfect = Arc::new(crate::imperfect::Imperfect::new(
+                    cpu,
+                    config,
+                    base.as_deref(),
+                    seed,
+                )?);
+                let ids = Arc::new(crate::imperfect::LayerIds(imperfect.clone()));
+                let top = config.layers.thresholds.len().max(1) as f32;
+                let pages = PageStreamer::new(ids, PAGE, workers, cache_bytes / 2)?;
+                (imperfect, Some((pages, top)))
+            }
+        };
         let fill = match gpu_surface {
             Some(g) if paged => {
                 let filled = Arc::new(crate::gpu::GpuFilled::from_parts(fill_gpu, g));
@@ -440,43 +417,15 @@ fn compose_rows(
 /// surface pixel, as `render --shade` picks it) of a surface, from a 256² sample at the
 /// origin.
 pub fn display_scales(s: &dyn Surface) -> Result<((f32, f32), f32)> {
-    let n = 256;
-    let c = s.channels();
-    let mut v = vec![0.0f32; n * n * c];
-    s.fill(&Region::new(0.0, 0.0, n, n), &mut v)?;
-    let h = |x: usize, y: usize| v[(y * n + x) * c] as f64;
-    let (mut sum, mut sq, mut count) = (0.0f64, 0.0f64, 0usize);
-    let mut slope2 = 0.0f64;
-    for y in 1..n - 1 {
-        for x in 1..n - 1 {
-            let z = h(x, y);
-            let gx = 0.5 * (h(x + 1, y) - h(x - 1, y));
-            let gy = 0.5 * (h(x, y + 1) - h(x, y - 1));
-            if z.is_finite() && gx.is_finite() && gy.is_finite() {
-                sum += z;
-                sq += z * z;
-                slope2 += gx * gx + gy * gy;
-                count += 1;
-            }
-        }
-    }
-    let count = count.max(1) as f64;
-    let mean = sum / count;
-    let sd = (sq / count - mean * mean).max(0.0).sqrt();
-    let half = if sd > 0.0 {
-        3.0 * sd
+    let o = crate::stream::OriginSample::of(s)?;
+    let half = if o.sd > 0.0 {
+        3.0 * o.sd
     } else {
-        mean.abs().max(1.0)
-    };
-    let rms = (slope2 / count).sqrt();
-    let exaggeration = if rms > 0.0 && rms.is_finite() {
-        0.5 / rms
-    } else {
-        1.0
+        o.mean.abs().max(1.0)
     };
     Ok((
-        ((mean - half) as f32, (mean + half) as f32),
-        exaggeration as f32,
+        ((o.mean - half) as f32, (o.mean + half) as f32),
+        o.half_slope_scale() as f32,
     ))
 }
 
