@@ -795,7 +795,7 @@ impl Baker {
             lut_z_range: 0.0,
             exemplar: exemplar_info(&ex, source),
             bake: format!(
-                "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} level={:?} downsample={} filter={:?} fill_missing={}",
+                "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} phase={:?} level={:?} downsample={} filter={:?} fill_missing={}",
                 u.0,
                 u.1,
                 v.0,
@@ -803,6 +803,7 @@ impl Baker {
                 self.tiles,
                 rt.overlap,
                 rt.origins,
+                rt.phase,
                 self.leveling,
                 self.downsample,
                 self.filter,
