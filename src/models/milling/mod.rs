@@ -41,6 +41,7 @@
 pub mod config;
 pub mod path;
 pub mod ring;
+mod simd;
 
 use std::ops::Range;
 
@@ -89,6 +90,8 @@ pub struct MillingSurface {
     noise: Vec<f32>,
     /// The same, quantised for the sampler ([`ring::quantise_noise`]).
     noise_q: Vec<i16>,
+    /// `noise_q` padded for the row fills ([`ring::pad_noise`]).
+    noise_pad: Vec<i16>,
     mm_per_px: f64,
     adaptation: Option<Adaptation>,
     /// Identity of this surface's rings in the per-thread ring cache (clones share it:
@@ -154,12 +157,14 @@ impl MillingSurface {
                 "a positive pixel spacing in µm",
             ));
         }
+        let noise_q = ring::quantise_noise(&noise);
         Ok(MillingSurface {
             config: config.clone(),
             rings: RingModel::new(config, seed),
             path: ToolPath::new(config),
             lut,
-            noise_q: ring::quantise_noise(&noise),
+            noise_pad: ring::pad_noise(&noise_q),
+            noise_q,
             noise,
             mm_per_px: spacing_um / 1000.0,
             adaptation,
@@ -392,9 +397,10 @@ impl MillingSurface {
                 } else {
                     self.block_ring_major(region, (r0, r1, c0, c1), &list, &mut acc);
                     let bw = c1 - c0;
-                    for r in r0..r1 {
-                        for c in c0..c1 {
-                            out[at(r, c)] = self.adapt(acc[(r - r0) * bw + c - c0]);
+                    for (r, src) in (r0..r1).zip(acc.chunks_exact(bw)) {
+                        let dst = &mut out[at(r, c0)..at(r, c1)];
+                        for (o, &h) in dst.iter_mut().zip(src) {
+                            *o = self.adapt(h);
                         }
                     }
                 }
@@ -469,11 +475,13 @@ impl MillingSurface {
     }
 
     /// The block rows r0..r1 × columns c0..c1 of `region`, ring by ring in milling
-    /// order: each ring updates f only at the points of its support, found per row as
-    /// one or two column spans of the annulus (a column wider on each side, the exact
-    /// test being [`ring::Drawn::value`]'s). Per point, the rings covering it are folded
-    /// in the same order and with the same operations as in [`Self::fold_drawn`], so the
-    /// values are the same bits; a ring costs nothing at the points it misses.
+    /// order: each ring updates f only at the points of its own support (the annulus
+    /// of its drawn widths, [`ring::RingModel::support_radii`]), found per row as one or
+    /// two column spans, a hair wider than the rounding of a column's coordinate (the
+    /// exact test being [`ring::Drawn::value`]'s). Per point, the rings covering it are
+    /// folded in the same order and with the same operations as in
+    /// [`Self::fold_drawn`], so the values are the same bits; a ring costs nothing at
+    /// the points it misses.
     fn block_ring_major(
         &self,
         region: &Region,
@@ -487,44 +495,40 @@ impl MillingSurface {
         acc.clear();
         acc.resize((r1 - r0) * bw, 0.0);
         let xs: SmallVec<[f64; MAX_BLOCK]> = (c0..c1).map(|c| region.x_at(c) * s).collect();
-        let mut scratch = ring::SpanScratch::default();
-        // Column of x (mm), before rounding.
+        let lut: &[f32; SHAPE_LUT] = self.lut[..]
+            .try_into()
+            .expect("the shape table has SHAPE_LUT entries");
+        // Column of x (mm), before rounding, and how far its rounding can reach: a
+        // millionth of a column, or 10⁻¹² of the coordinate (pixels) where that is more
+        // (up to SPAN_LIMIT = 2⁴⁰ px, about one column).
         let col_of = |x: f64| (x / s - region.x) / region.step - region.col0 as f64;
-        let (s_in, s_out) = (m.support2.0, m.support2.1);
+        let far = region.x_at(c0).abs().max(region.x_at(c1 - 1).abs());
+        let slack = 1e-6 + 1e-12 * far / region.step;
         for d in list {
+            let Some((lo, hi)) = m.support_radii(d) else {
+                continue;
+            };
+            let (in2, out2) = (lo * lo * (1.0 - 1e-9), hi * hi * (1.0 + 1e-9));
             let (cx, cy) = d.centre;
+            let mut k = m.span_ring(d, &self.noise_pad);
             for r in r0..r1 {
                 let y = region.y_at(r) * s;
                 let dy2 = (y - cy) * (y - cy);
-                let out2 = s_out * (1.0 + 1e-9) - dy2;
+                let out2 = out2 - dy2;
                 if out2 < 0.0 {
                     continue;
                 }
-                let in2 = s_in * (1.0 - 1e-9) - dy2;
+                let in2 = in2 - dy2;
+                k.set_row(y);
                 let row = &mut acc[(r - r0) * bw..(r - r0 + 1) * bw];
                 path::annulus_runs(cx, in2, out2, |lo: f64, hi: f64| {
-                    let a = (col_of(lo).floor() - 1.0).max(c0 as f64);
-                    let b = (col_of(hi).ceil() + 1.0).min((c1 - 1) as f64);
+                    let a = (col_of(lo) - slack).ceil().max(c0 as f64);
+                    let b = (col_of(hi) + slack).floor().min((c1 - 1) as f64);
                     if a.is_nan() || b.is_nan() || a > b {
                         return;
                     }
                     let (a, b) = (a as usize - c0, b as usize - c0);
-                    m.span(
-                        d,
-                        &xs[a..=b],
-                        y,
-                        &self.lut,
-                        &self.noise_q,
-                        &mut scratch,
-                        |k, v| {
-                            let f = &mut row[a + k];
-                            *f = match m.interaction {
-                                InteractionKind::Min => f.min(v.r),
-                                InteractionKind::Latest => v.r,
-                                InteractionKind::Convex => v.a * v.r + (1.0 - v.a) * *f,
-                            };
-                        },
-                    );
+                    k.fold(&xs[a..=b], &mut row[a..=b], lut);
                 });
             }
         }
@@ -538,7 +542,7 @@ impl MillingSurface {
             .iter()
             .filter_map(|d| d.value(m, x, y, &self.lut, &self.noise_q));
         match m.interaction {
-            InteractionKind::Min => covering.fold(0.0f64, |f, v| f.min(v.r)),
+            InteractionKind::Min => covering.fold(0.0f64, |f, v| ring::fold_min(f, v.r)),
             InteractionKind::Latest => covering.next_back().map_or(0.0, |v| v.r),
             InteractionKind::Convex => covering.fold(0.0, |f, v| v.a * v.r + (1.0 - v.a) * f),
         }
@@ -665,7 +669,7 @@ impl Surface for MillingSurface {
 /// any order: min, the latest ring's value, or the convex fold in milling order (§4.2).
 fn fold_keyed(interaction: InteractionKind, found: &mut [(Key, f64, f64)]) -> f64 {
     match interaction {
-        InteractionKind::Min => found.iter().fold(0.0f64, |f, v| f.min(v.1)),
+        InteractionKind::Min => found.iter().fold(0.0f64, |f, v| ring::fold_min(f, v.1)),
         InteractionKind::Latest => found
             .iter()
             .max_by(|a, b| a.0.cmp(&b.0))
@@ -720,7 +724,7 @@ impl<'a> BruteForce<'a> {
         for (_, ring) in &self.rings {
             let value = m.value(ring, x, y, &s.lut, &s.noise_q);
             f = match (m.interaction, value) {
-                (InteractionKind::Min, v) => f.min(v.map_or(0.0, |v| v.r)),
+                (InteractionKind::Min, v) => ring::fold_min(f, v.map_or(0.0, |v| v.r)),
                 (InteractionKind::Latest, Some(v)) => v.r,
                 (InteractionKind::Convex, Some(v)) => v.a * v.r + (1.0 - v.a) * f,
                 (_, None) => f,

@@ -109,6 +109,17 @@ pub fn noise_profiles(count_mean: f64, frequency_mean: f64, seed: u64) -> Vec<f3
     out
 }
 
+/// Minimax coefficients for atan on [0, 1] (max error 1e-5 rad): atan z ≈
+/// z·(c₀ + z²·(c₁ + z²·(c₂ + z²·(c₃ + z²·(c₄ − c₅·z²))))).
+pub(crate) const ATAN_POLY: [f64; 6] = [
+    0.999_977_26,
+    -0.332_623_47,
+    0.193_543_46,
+    -0.116_432_87,
+    0.052_653_32,
+    0.011_721_2,
+];
+
 /// atan2(y, x) / 2π in [−½, ½], to about 2·10⁻⁶ turns: a polynomial instead of the libm
 /// call, which would be a sixth of a sample's time. Used only to index the noise
 /// profiles, whose samples are 5·10⁻⁴ turns apart.
@@ -121,12 +132,8 @@ pub fn atan2_turns(y: f64, x: f64) -> f64 {
     }
     let z = lo / hi;
     let z2 = z * z;
-    // Minimax for atan on [0, 1] (max error 1e-5 rad).
-    let mut a = z
-        * (0.999_977_26
-            + z2 * (-0.332_623_47
-                + z2 * (0.193_543_46
-                    + z2 * (-0.116_432_87 + z2 * (0.052_653_32 - 0.011_721_2 * z2)))));
+    let [c0, c1, c2, c3, c4, c5] = ATAN_POLY;
+    let mut a = z * (c0 + z2 * (c1 + z2 * (c2 + z2 * (c3 + z2 * (c4 - c5 * z2)))));
     if ay > ax {
         a = std::f64::consts::FRAC_PI_2 - a;
     }
@@ -523,7 +530,7 @@ impl RingModel {
             ShapeKind::Indicator => -1.0,
             _ => {
                 // D = (dist − centre)·2/w ∈ [−1, 1]; cos(π/2·D) from the table.
-                let d = ((dist - centre) * 2.0 / width).clamp(-1.0, 1.0);
+                let d = ((dist - centre) * (2.0 / width)).clamp(-1.0, 1.0);
                 let pos = (d + 1.0) * (0.5 * (SHAPE_LUT - 1) as f64);
                 let i = (pos as usize).min(SHAPE_LUT - 2);
                 let f = pos - i as f64;
@@ -549,63 +556,38 @@ impl RingModel {
         self.noise_amplitude * NOISE_UNIT * (a + (b - a) * f)
     }
 
-    /// Ring `d` at the points (`xs[k]`, y) of a row (mm, at most [`SPAN`] of them): calls
-    /// `fold(k, value)` for each point it covers, in order. The values are those of
-    /// [`Drawn::value`], bit for bit; the work runs in passes over the row (distances,
-    /// shape and plane, noise), each over the points still covered, whose short
-    /// independent iterations overlap where the point-by-point chain (square root,
-    /// table, arctangent, table) would wait.
+    /// Ring `d` ready to be folded into rows ([`SpanRing::fold`]); `noise` holds the
+    /// profiles as [`pad_noise`] lays them out.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub fn span(
-        &self,
-        d: &Drawn,
-        xs: &[f64],
-        y: f64,
-        lut: &[f32],
-        noise: &[i16],
-        t: &mut SpanScratch,
-        mut fold: impl FnMut(usize, Value),
-    ) {
-        let xs = &xs[..xs.len().min(SPAN)];
-        let dy = y - d.centre.1;
-        let dy2 = dy * dy;
-        let mut n = 0;
-        for (k, &x) in xs.iter().enumerate() {
-            let dx = x - d.centre.0;
-            let d2 = dx * dx + dy2;
-            t.idx[n] = k as u8;
-            t.dx[n] = dx;
-            t.dist[n] = d2.sqrt();
-            n += (d2 >= self.support2.0 && d2 <= self.support2.1) as usize;
-        }
-        let mut m = 0;
-        for q in 0..n {
-            let (dx, dist) = (t.dx[q], t.dist[q]);
-            if let Some(pcw) = self.part_of(dist, d.w_minus, || d.w_inner, || d.w_outer) {
-                let along = self.along(d.dir, dx, dy);
-                t.idx[m] = t.idx[q];
-                t.dx[m] = dx;
-                t.v[m] = self.shape_plane(pcw, dist, along, d.planes[pcw.0 as usize], lut);
-                t.a[m] = self.weight(d.weights, along);
-                m += 1;
-            }
-        }
-        if self.noise_amplitude > 0.0 {
-            for q in 0..m {
-                t.v[q] += self.noise_at(d.noise_word, t.dx[q], dy, noise);
-            }
-        }
-        for q in 0..m {
-            fold(
-                t.idx[q] as usize,
-                Value {
-                    r: t.v[q],
-                    a: t.a[q],
-                    order: 0,
-                },
-            );
-        }
+    pub(crate) fn span_ring<'a>(&self, d: &Drawn, noise: &'a [i16]) -> SpanRing<'a> {
+        SpanRing::new(self, d, noise)
+    }
+
+    /// The radii (mm) between which ring `d` can cover a point, or None if it covers
+    /// none: the union of its parts as `part_of` bounds them (indentation [r − w⁻, r],
+    /// inner [r − w⁻ − w⁺ⁱ, r − w⁻), outer (r, r + w⁺ᵒ]), within the model's support.
+    pub fn support_radii(&self, d: &Drawn) -> Option<(f64, f64)> {
+        let r = self.r;
+        let bump = self.shape == ShapeKind::Bump;
+        let edge = r - d.w_minus;
+        let (ind, inner, outer) = (
+            d.w_minus > 0.0,
+            bump && d.w_inner > 0.0,
+            bump && d.w_outer > 0.0,
+        );
+        let lo = if inner {
+            edge - d.w_inner
+        } else if ind {
+            edge
+        } else {
+            r
+        };
+        let hi = if outer { r + d.w_outer } else { r };
+        let (lo, hi) = (
+            lo.max(self.support2.0.sqrt()),
+            hi.min(self.support2.1.sqrt()),
+        );
+        (ind || inner || outer).then_some((lo.max(0.0), hi))
     }
 
     /// Everything about ring `ring` that does not depend on the point, drawn at once:
@@ -636,26 +618,200 @@ impl RingModel {
     }
 }
 
-/// Working rows of [`RingModel::span`], kept by the caller so no call clears them.
-#[derive(Clone, Debug)]
-pub struct SpanScratch {
-    idx: [u8; SPAN],
-    dx: [f64; SPAN],
-    dist: [f64; SPAN],
-    v: [f64; SPAN],
-    a: [f64; SPAN],
+/// What a row fill needs of one ring on one row: the constants of
+/// [`Drawn::value`]'s arithmetic, worked out once. Shared by the scalar path
+/// ([`SpanRing::point`]) and the AVX2 one ([`super::simd`]), which do the same
+/// operations in the same order.
+pub(crate) struct SpanRing<'a> {
+    pub(crate) cx: f64,
+    cy: f64,
+    pub(crate) dy: f64,
+    pub(crate) dy2: f64,
+    pub(crate) r: f64,
+    /// r − w⁻: where the indentation starts.
+    pub(crate) edge: f64,
+    pub(crate) has_ind: bool,
+    pub(crate) has_in: bool,
+    pub(crate) has_out: bool,
+    /// Profile centres of the parts.
+    pub(crate) c_ind: f64,
+    pub(crate) c_in: f64,
+    pub(crate) c_out: f64,
+    /// 2 / the profile widths of the parts (w⁻, w⁺ⁱ, w⁺ᵒ).
+    pub(crate) k_ind: f64,
+    pub(crate) k_in: f64,
+    pub(crate) k_out: f64,
+    /// The inner part's lower and the outer part's upper bound.
+    pub(crate) in_lo: f64,
+    pub(crate) out_hi: f64,
+    /// Each part's plane as (h − l, ½(h + l)): `shape_plane`'s two terms.
+    pub(crate) p_ind: (f64, f64),
+    pub(crate) p_in: (f64, f64),
+    pub(crate) p_out: (f64, f64),
+    pub(crate) indicator: bool,
+    pub(crate) cos_t: f64,
+    sin_t: f64,
+    /// sin θ·dy, the row's share of the position along the motion.
+    pub(crate) along_y: f64,
+    pub(crate) to_along: f64,
+    /// The convex weight as (a − b, ½(a + b)).
+    pub(crate) w_slope: f64,
+    pub(crate) w_mid: f64,
+    pub(crate) interaction: InteractionKind,
+    pub(crate) with_noise: bool,
+    pub(crate) amplitude: f64,
+    pub(crate) rotation: f64,
+    /// The ring's noise profile, padded ([`pad_noise`]).
+    pub(crate) noise: &'a [i16; NOISE_SAMPLES + 1],
 }
 
-impl Default for SpanScratch {
-    fn default() -> Self {
-        SpanScratch {
-            idx: [0; SPAN],
-            dx: [0.0; SPAN],
-            dist: [0.0; SPAN],
-            v: [0.0; SPAN],
-            a: [0.0; SPAN],
+impl<'a> SpanRing<'a> {
+    #[inline(always)]
+    fn new(m: &RingModel, d: &Drawn, noise: &'a [i16]) -> SpanRing<'a> {
+        let r = m.r;
+        let bump = m.shape == ShapeKind::Bump;
+        let edge = r - d.w_minus;
+        let plane = |(low, high): (f64, f64)| (high - low, 0.5 * (high + low));
+        let (wa, wb) = d.weights;
+        let profile = (d.noise_word as usize >> 10) % NOISE_PROFILES;
+        let row = NOISE_SAMPLES + 1;
+        SpanRing {
+            cx: d.centre.0,
+            cy: d.centre.1,
+            dy: 0.0,
+            dy2: 0.0,
+            r,
+            edge,
+            has_ind: d.w_minus > 0.0,
+            has_in: bump && d.w_inner > 0.0,
+            has_out: bump && d.w_outer > 0.0,
+            c_ind: r - 0.5 * d.w_minus,
+            c_in: edge - 0.5 * d.w_inner,
+            c_out: r + 0.5 * d.w_outer,
+            k_ind: 2.0 / d.w_minus,
+            k_in: 2.0 / d.w_inner,
+            k_out: 2.0 / d.w_outer,
+            in_lo: edge - d.w_inner,
+            out_hi: r + d.w_outer,
+            p_ind: plane(d.planes[0]),
+            p_in: plane(d.planes[1]),
+            p_out: plane(d.planes[2]),
+            indicator: m.shape == ShapeKind::Indicator,
+            cos_t: d.dir.0,
+            sin_t: d.dir.1,
+            along_y: 0.0,
+            to_along: 0.5 / m.r,
+            w_slope: wa - wb,
+            w_mid: 0.5 * (wa + wb),
+            interaction: m.interaction,
+            with_noise: m.noise_amplitude > 0.0,
+            amplitude: m.noise_amplitude * NOISE_UNIT,
+            rotation: (d.noise_word & 0x3FF) as f64 * (1.0 / 1024.0),
+            noise: noise[profile * row..(profile + 1) * row]
+                .try_into()
+                .expect("a padded noise profile has NOISE_SAMPLES + 1 entries"),
         }
     }
+
+    /// Moves to the row at y (mm).
+    #[inline(always)]
+    pub(crate) fn set_row(&mut self, y: f64) {
+        self.dy = y - self.cy;
+        self.dy2 = self.dy * self.dy;
+        self.along_y = self.sin_t * self.dy;
+    }
+
+    /// The ring folded into `row` at the points `xs` (mm) of the row [`Self::set_row`]
+    /// chose: each point it covers becomes min(f, R), R or A·R + (1 − A)·f by the
+    /// interaction, the others keep f. The values are those of [`Drawn::value`] and
+    /// the fold that of `fold_keyed`, bit for bit: the same operations on the same
+    /// numbers. Every point goes through the same straight-line code (the part of the
+    /// ring, the shape, plane and noise chosen by selects, not branches; a point off
+    /// the support computes a value and drops it): four points per instruction where
+    /// the CPU has AVX2 ([`super::simd`]), one by one otherwise.
+    #[inline(always)]
+    pub(crate) fn fold(&self, xs: &[f64], row: &mut [f64], lut: &[f32; SHAPE_LUT]) {
+        let n = xs.len().min(row.len());
+        let done = super::simd::span(self, &xs[..n], &mut row[..n], lut);
+        for (f, &x) in row[done..n].iter_mut().zip(&xs[done..n]) {
+            *f = self.point(x, *f, lut);
+        }
+    }
+
+    /// The fold at one point x of the row, f the value so far: [`Drawn::value`] and
+    /// `fold_keyed`'s step, without branches on the point.
+    #[inline(always)]
+    pub(crate) fn point(&self, x: f64, f: f64, lut: &[f32; SHAPE_LUT]) -> f64 {
+        let dx = x - self.cx;
+        let d2 = dx * dx + self.dy2;
+        let dist = d2.sqrt();
+        let ind = self.has_ind & (dist >= self.edge) & (dist <= self.r);
+        let below = dist < self.edge;
+        let inner = !ind & self.has_in & below & (dist >= self.in_lo);
+        let outer = !ind & self.has_out & !below & (dist > self.r) & (dist <= self.out_hi);
+        // `Drawn::value` first asks for d² within the model's support annulus
+        // `support2`; every part lies inside it with a margin of 10⁻¹² of the radius
+        // (the widths' truncation at 4σ bounds them), far above the rounding of d² and
+        // √d², so a point in a part passes that test and it is left out here.
+        let covered = ind | inner | outer;
+        let centre = select(ind, self.c_ind, select(inner, self.c_in, self.c_out));
+        let scale = select(ind, self.k_ind, select(inner, self.k_in, self.k_out));
+        let slope = select(ind, self.p_ind.0, select(inner, self.p_in.0, self.p_out.0));
+        let mid = select(ind, self.p_ind.1, select(inner, self.p_in.1, self.p_out.1));
+        let s = if self.indicator {
+            -1.0
+        } else {
+            let dd = ((dist - centre) * scale).clamp(-1.0, 1.0);
+            let pos = (dd + 1.0) * (0.5 * (SHAPE_LUT - 1) as f64);
+            let i = (pos as usize).min(SHAPE_LUT - 2);
+            let t = pos - i as f64;
+            let c = lut[i] as f64 + (lut[i + 1] as f64 - lut[i] as f64) * t;
+            select(ind, -c, c)
+        };
+        let along = (self.cos_t * dx + self.along_y) * self.to_along;
+        let mut v = s * (slope * along + mid);
+        if self.with_noise {
+            let turn = atan2_turns(self.dy, dx) + self.rotation;
+            let pos = (turn - turn.floor()) * NOISE_SAMPLES as f64;
+            let i = (pos as usize).min(NOISE_SAMPLES - 1);
+            let t = pos - i as f64;
+            let (a, b) = (self.noise[i] as f64, self.noise[i + 1] as f64);
+            v += self.amplitude * (a + (b - a) * t);
+        }
+        let folded = match self.interaction {
+            InteractionKind::Min => fold_min(f, v),
+            InteractionKind::Latest => v,
+            InteractionKind::Convex => {
+                let a = (self.w_slope * along + self.w_mid).clamp(0.0, 1.0);
+                a * v + (1.0 - a) * f
+            }
+        };
+        select(covered, folded, f)
+    }
+}
+
+/// The minimum interaction's step: v where it is below f, else f (one definition, so
+/// that the point, row and brute-force folds agree on ties of ±0).
+#[inline(always)]
+pub(crate) fn fold_min(f: f64, v: f64) -> f64 {
+    if v < f { v } else { f }
+}
+
+/// `if c { a } else { b }`, written so that it compiles to a select, not a branch.
+#[inline(always)]
+fn select(c: bool, a: f64, b: f64) -> f64 {
+    let m = (c as u64).wrapping_neg();
+    f64::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+}
+
+/// The noise profiles laid out for the row fills: each followed by a copy of its first
+/// sample, so the interpolation's next sample is always the next entry (and the AVX2
+/// path reads both in one 32-bit load).
+pub fn pad_noise(noise: &[i16]) -> Vec<i16> {
+    noise
+        .chunks_exact(NOISE_SAMPLES)
+        .flat_map(|p| p.iter().chain(&p[..1]).copied())
+        .collect()
 }
 
 /// The point-independent draws of one ring ([`RingModel::drawn`]).
@@ -742,6 +898,89 @@ mod tests {
         assert!(mean.abs() < 0.01, "mean {mean}");
         assert!((var - 1.0).abs() < 0.02, "variance {var}");
         assert!(zs.iter().all(|z| z.abs() <= TRUNCATE_SIGMA));
+    }
+
+    /// The row fold (AVX2 where the CPU has it, see `super::super::simd`), its scalar
+    /// twin [`SpanRing::point`] (the path of CPUs without AVX2) and the point path
+    /// ([`Drawn::value`] and the interaction's step) give the same f64 bits, for every
+    /// shape × interaction, rows of every length mod 4, across each ring, from values
+    /// so far that include ±0. (The fill test compares f32 heights; this compares f64.)
+    #[test]
+    fn row_folds_equal_point_values_in_f64_bits() {
+        use super::super::config::MillingConfig;
+        use super::super::path::ToolPath;
+        let lut: Vec<f32> = shape_table();
+        let lut: &[f32; SHAPE_LUT] = lut[..].try_into().unwrap();
+        let noise_q = quantise_noise(&noise_profiles(50.0, 50.0, 4));
+        let noise_pad = pad_noise(&noise_q);
+        let (mut covered, mut total) = (0usize, 0usize);
+        for shape in ["indicator", "cosine", "bump"] {
+            for interaction in ["min", "latest", "convex"] {
+                let text = format!(
+                    "[shape]\nkind = \"{shape}\"\n[interaction]\nkind = \"{interaction}\"\n[path]\nkind = \"parallel\"\nangle_deg = 20.0\n"
+                );
+                let c = MillingConfig::from_toml(&text, "test").unwrap();
+                let m = RingModel::new(&c, 5);
+                let path = ToolPath::new(&c);
+                for id in 0..12i64 {
+                    let d = m.drawn(&path.nominal((id % 3, id)), false);
+                    let (lo, hi) = m.support_radii(&d).unwrap();
+                    let mut k = m.span_ring(&d, &noise_pad);
+                    let mut state = (id as u64 + 1) * 0x9E37_79B9_7F4A_7C15;
+                    for row in 0..40 {
+                        let y = d.centre.1 - hi + 2.0 * hi * (row as f64 + 0.5) / 40.0;
+                        k.set_row(y);
+                        // 37 + row % 4 points over the right-hand run of the annulus on
+                        // this row, a little beyond it at both ends.
+                        let dy2 = (y - d.centre.1).powi(2);
+                        let (a, b) = ((lo * lo - dy2).max(0.0).sqrt(), (hi * hi - dy2).sqrt());
+                        let n = 37 + row % 4;
+                        let xs: Vec<f64> = (0..n)
+                            .map(|i| d.centre.0 + a - 0.02 + (b - a + 0.04) * i as f64 / n as f64)
+                            .collect();
+                        let f0: Vec<f64> = (0..n)
+                            .map(|i| {
+                                state ^= state << 13;
+                                state ^= state >> 7;
+                                state ^= state << 17;
+                                match i % 5 {
+                                    0 => 0.0,
+                                    1 => -0.0,
+                                    _ => (state >> 11) as f64 / (1u64 << 53) as f64 * 10.0 - 5.0,
+                                }
+                            })
+                            .collect();
+                        let mut simd = f0.clone();
+                        k.fold(&xs, &mut simd, lut);
+                        for i in 0..n {
+                            let scalar = k.point(xs[i], f0[i], lut);
+                            let want = match d.value(&m, xs[i], y, lut, &noise_q) {
+                                Some(v) => {
+                                    covered += 1;
+                                    match m.interaction {
+                                        InteractionKind::Min => fold_min(f0[i], v.r),
+                                        InteractionKind::Latest => v.r,
+                                        InteractionKind::Convex => v.a * v.r + (1.0 - v.a) * f0[i],
+                                    }
+                                }
+                                None => f0[i],
+                            };
+                            total += 1;
+                            assert_eq!(
+                                (simd[i].to_bits(), scalar.to_bits()),
+                                (want.to_bits(), want.to_bits()),
+                                "{shape} {interaction} ring {id} row {row} point {i}: row fold {}, scalar {scalar}, point {want}",
+                                simd[i]
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            covered > total / 4,
+            "only {covered} of {total} points covered"
+        );
     }
 
     #[test]
