@@ -34,7 +34,7 @@ pub struct RollerTiles {
     /// (before the phase: texel (0, 0) of the stored tiles is rhomboid offset `phase`).
     pub origins: Vec<(i64, i64)>,
     /// Phase p of the stored tiles: texel q holds what rhomboid offset q + p (reduced
-    /// on the lattice) holds; see [`choose_phase`].
+    /// on the lattice) holds (the bake chooses it: see `choose_phase`).
     pub phase: (i64, i64),
     /// Per tile, `a × c × channels` texels, row-major.
     pub tiles: Vec<Vec<f32>>,

@@ -22,7 +22,7 @@ pub const SHAPE_LUT: usize = 1025;
 /// Truncation of every normal draw, in standard deviations: it bounds a ring's reach.
 pub const TRUNCATE_SIGMA: f64 = 4.0;
 
-/// Most points of a row [`RingModel::span`] takes at once.
+/// Most pixels across a block of a region fill (one support annulus across, at most).
 pub const SPAN: usize = 64;
 
 /// Entries of the inverse normal CDF table, less one.

@@ -1,4 +1,4 @@
-//! Four points of a row per instruction for [`RingModel::span_fold`], where the CPU has
+//! Four points of a row per instruction for [`SpanRing::fold`], where the CPU has
 //! AVX2 (checked at run time: the crate's baseline is x86-64-v2).
 //!
 //! Each step is the scalar [`SpanRing::point`]'s, in the same order, with IEEE
@@ -9,7 +9,6 @@
 //! `height()`, which is scalar). Table reads are gathers; a lane whose point is off
 //! the ring computes with indices clamped into the tables and is dropped.
 //!
-//! [`RingModel::span_fold`]: super::ring::RingModel::span_fold
 
 use super::ring::{SHAPE_LUT, SpanRing};
 
