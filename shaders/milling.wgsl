@@ -165,7 +165,7 @@ fn weight(a: f32, b: f32, along_v: f32) -> f32 {
 fn shape_plane(part: u32, centre: f32, width: f32, dist: f32, along_v: f32, plane: vec2<f32>) -> f32 {
     var s = -1.0;
     if (mp.shape != SHAPE_INDICATOR) {
-        let d = clamp((dist - centre) * 2.0 / width, -1.0, 1.0);
+        let d = clamp((dist - centre) * (2.0 / width), -1.0, 1.0);
         let pos = (d + 1.0) * (0.5 * f32(SHAPE_LUT - 1u));
         let i = min(u32(pos), SHAPE_LUT - 2u);
         let f = pos - f32(i);
