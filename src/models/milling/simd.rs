@@ -141,7 +141,6 @@ mod x86 {
             let m = (n - i).min(4);
             // The last group of a row not a multiple of 4 long goes through arrays
             // padded with its last point.
-            let (mut xp, mut fp) = ([0.0f64; 4], [0.0f64; 4]);
             let (x, f) = if m == 4 {
                 // SAFETY: i + 4 ≤ n ≤ the lengths of both slices.
                 unsafe {
@@ -151,8 +150,7 @@ mod x86 {
                     )
                 }
             } else {
-                xp = [xs[n - 1]; 4];
-                fp = [row[n - 1]; 4];
+                let (mut xp, mut fp) = ([xs[n - 1]; 4], [row[n - 1]; 4]);
                 for q in 0..m {
                     (xp[q], fp[q]) = (xs[i + q], row[i + q]);
                 }
@@ -165,13 +163,13 @@ mod x86 {
                 // SAFETY: as for the loads.
                 unsafe { _mm256_storeu_pd(row.as_mut_ptr().add(i), g) };
             } else {
+                let mut out = [0.0f64; 4];
                 // SAFETY: the array holds 4 values.
-                unsafe { _mm256_storeu_pd(fp.as_mut_ptr(), g) };
-                for (r, &v) in row[i..n].iter_mut().zip(&fp) {
+                unsafe { _mm256_storeu_pd(out.as_mut_ptr(), g) };
+                for (r, &v) in row[i..n].iter_mut().zip(&out) {
                     *r = v;
                 }
             }
-            let _ = xp;
         }
         n
     }
