@@ -9,8 +9,12 @@
 //! Per sample, two access patterns: rendering the 820² image of Fig. 25 on one thread
 //! (`render_820`: the indexed fill, which draws each ring once per block, against the
 //! twin rendering rows of the same image) and 1024 scattered `height()` calls
-//! (`milling`: each point on its own, against the twin at the same points). The spiral
-//! preset (spiral-d4-ae05) is measured beside it for the README's table.
+//! (`milling`: each point on its own, against the twin at the same points). The
+//! scattered points are the same 1024 in every iteration, as a renderer or inspection
+//! rig asks a field again and again, so `indexed_height` runs on the per-thread cell
+//! cache; `indexed_height_cold` asks the same pattern 20 mm further on in each
+//! iteration, where no cell or ring was cached yet (every point pays its ring draws).
+//! The spiral preset (spiral-d4-ae05) is measured beside it for the README's table.
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -45,6 +49,17 @@ fn bench(c: &mut Criterion) {
                     .sum::<f32>()
             })
         });
+        let mut field = 0.0f64;
+        g.bench_function(format!("{preset}/indexed_height_cold"), |b| {
+            b.iter(|| {
+                // A fresh field 20 mm (3279 px) on, every iteration.
+                field += 3279.0;
+                points
+                    .iter()
+                    .map(|&(x, y)| s.height(black_box(x + field), black_box(y)))
+                    .sum::<f32>()
+            })
+        });
         let twin = BruteForce::new(&s, 0.0, 0.0, 820.0, 820.0);
         eprintln!(
             "{preset}: brute force folds {} rings per point",
@@ -75,6 +90,17 @@ fn bench(c: &mut Criterion) {
             })
         });
         // The twin renders 8 rows spread over the image (6560 samples) per iteration.
+        let mut field = 0.0f64;
+        g.bench_function(format!("{preset}/indexed_height_cold"), |b| {
+            b.iter(|| {
+                // A fresh field 20 mm (3279 px) on, every iteration.
+                field += 3279.0;
+                points
+                    .iter()
+                    .map(|&(x, y)| s.height(black_box(x + field), black_box(y)))
+                    .sum::<f32>()
+            })
+        });
         let twin = BruteForce::new(&s, 0.0, 0.0, 820.0, 820.0);
         g.throughput(Throughput::Elements(8 * 820));
         g.bench_function(format!("{preset}/brute_force_8_rows"), |b| {

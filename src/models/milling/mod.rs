@@ -91,7 +91,7 @@ pub struct MillingSurface {
     /// The same, quantised for the sampler ([`ring::quantise_noise`]).
     noise_q: Vec<i16>,
     /// `noise_q` padded for the row fills ([`ring::pad_noise`]).
-    noise_pad: Vec<i16>,
+    noise_pad: ring::Padded,
     mm_per_px: f64,
     adaptation: Option<Adaptation>,
     /// Identity of this surface's rings in the per-thread ring cache (clones share it:
@@ -100,17 +100,50 @@ pub struct MillingSurface {
 }
 
 /// Slots of the per-thread cache of drawn rings (direct-mapped; a power of two). A
-/// slot holds one ring's [`ring::Drawn`], about 200 bytes: 200 KiB per thread.
+/// slot holds one ring's constants ([`ring::SpanRing`]) and key, about 300 bytes:
+/// 300 KiB per thread, of which a field of points touches only its own rings.
 const RING_CACHE_SLOTS: usize = 1024;
 
-/// One cached ring: (surface uid, ring id, its draws).
-type CachedRing = Option<(u64, (i64, i64), ring::Drawn)>;
+/// Cells of the per-thread cell cache along each axis (a power of two): cell (i, j)
+/// goes to slot (i mod 64, j mod 64), so the cells of any field up to 64 cells wide
+/// (13 mm at d = 4 mm) have slots of their own. A cell holds its rings' constants
+/// ([`ring::Group`], 0.9 KiB per four rings; about 8 rings at d = 4 mm), so a thread
+/// that fills every slot keeps about 10 MiB; one that queries a smaller field, only
+/// that field's cells.
+const CELL_CACHE_SIDE: usize = 64;
+
+/// One cached ring: the surface it belongs to (uid 0: an empty slot), its id, its
+/// constants and its milling-order key.
+#[derive(Clone, Copy)]
+struct CachedRing {
+    uid: u64,
+    id: (i64, i64),
+    ring: ring::SpanRing,
+    key: Key,
+}
+
+/// One cached cell: the surface (uid 0: an empty slot) and the cell it is about, and
+/// the rings that can cover a point of the cell, in milling order, four to a
+/// [`ring::Group`] (empty until the cell is asked for a second time).
+struct CachedCell {
+    uid: u64,
+    cell: (i64, i64),
+    groups: Vec<ring::Group>,
+}
+
+/// A thread's caches for [`MillingSurface::eval_mm_cached`].
+#[derive(Default)]
+struct PointCache {
+    rings: Vec<CachedRing>,
+    cells: Vec<CachedCell>,
+    /// Scratch for building a cell.
+    scratch: Vec<(Key, ring::SpanRing)>,
+}
 
 thread_local! {
-    /// The rings `height()` drew last on this thread, by slot
-    /// ([`MillingSurface::eval_mm_cached`]).
-    static RING_CACHE: std::cell::RefCell<Vec<CachedRing>> =
-        const { std::cell::RefCell::new(Vec::new()) };
+    /// The rings and cells `height()` used last on this thread, by slot.
+    static POINT_CACHE: std::cell::RefCell<PointCache> =
+        std::cell::RefCell::new(PointCache::default());
 }
 
 /// Next surface uid (0 is never handed out).
@@ -302,47 +335,260 @@ impl MillingSurface {
         fold_keyed(m.interaction, &mut found)
     }
 
-    /// [`Self::eval_mm`] through this thread's cache of drawn rings: each candidate
+    /// [`Self::eval_mm`] through this thread's caches.
+    ///
+    /// The plane is cut into square cells half as wide as the annulus in which a ring
+    /// can have support (0.2 mm at d = 4 mm). The second time a point falls in a cell,
+    /// the cell keeps the rings that can cover any of its points, in milling order, as
+    /// the constants of their arithmetic, four rings to a group. From then on a point
+    /// of the cell costs a slot lookup, its groups evaluated four rings per
+    /// instruction with the row fills' straight-line code (AVX2 where the CPU has it;
+    /// one by one otherwise), and a branch-free fold in milling order.
+    ///
+    /// A point in a cell seen once goes through the ring cache instead: each candidate
     /// ring's point-independent draws ([`ring::RingModel::drawn`]: two hashes, a dozen
-    /// normal deviates, its milling-order key) are made once and kept in a
-    /// direct-mapped slot, and [`ring::Drawn::value`] evaluates it at the point. The
-    /// values, the order of the fold and so the bits are those of [`Self::eval_mm`]
-    /// (`cached_heights_equal_uncached_ones`); only the time differs. Points near each
-    /// other share their rings (a ring covers about 2.5 mm² at d = 4 mm), so scattered
+    /// normal deviates, its milling key) are made once and kept in a direct-mapped
+    /// slot (cells are built from it too), and the candidates covering the point are
+    /// folded in milling order.
+    ///
+    /// The values, the order of the fold and so the bits are those of
+    /// [`Self::eval_mm`] (`cached_heights_equal_uncached_ones`); only the time
+    /// differs. Points near each other share their cells and rings, so scattered
     /// queries over a field, as a renderer or an inspection rig makes them, mostly hit;
-    /// far-apart points miss and pay the draws as before, plus the slot write.
+    /// far-apart points miss and pay the draws as [`Self::eval_mm`] does, plus the
+    /// slot writes.
     #[inline]
     pub fn eval_mm_cached(&self, x: f64, y: f64) -> f64 {
-        RING_CACHE.with(|cache| {
+        POINT_CACHE.with(|cache| {
             let Ok(mut cache) = cache.try_borrow_mut() else {
                 // Only if a ring's evaluation re-entered height() on this thread.
                 return self.eval_mm(x, y);
             };
-            if cache.is_empty() {
-                cache.resize(RING_CACHE_SLOTS, None);
+            if cache.rings.is_empty() {
+                // Empty slots: uid 0 is never a surface's.
+                let placeholder = self.cache_entry((0, 0), 0);
+                cache.rings.resize(RING_CACHE_SLOTS, placeholder);
+                cache.cells = (0..CELL_CACHE_SIDE * CELL_CACHE_SIDE)
+                    .map(|_| CachedCell {
+                        uid: 0,
+                        cell: (0, 0),
+                        groups: Vec::new(),
+                    })
+                    .collect();
             }
-            let m = &self.rings;
-            let path = &self.path;
-            let spiral = path.is_spiral();
-            let mut found: SmallVec<[(Key, f64, f64); 12]> = SmallVec::new();
-            path.candidates(x, y, m.reach_in, m.reach_out, |id| {
-                let slot =
-                    (crate::hash::hash_tile(0, id.0, id.1) as usize) & (RING_CACHE_SLOTS - 1);
-                let entry = &mut cache[slot];
-                let d = match entry {
-                    Some((uid, at, d)) if *uid == self.uid && *at == id => d,
-                    _ => {
-                        &mut entry
-                            .insert((self.uid, id, m.drawn(&path.nominal(id), spiral)))
-                            .2
-                    }
-                };
-                if let Some(v) = d.value(m, x, y, &self.lut, &self.noise_q) {
-                    found.push((d.key, v.r, v.a));
-                }
-            });
-            fold_keyed(m.interaction, &mut found)
+            #[cfg(target_arch = "x86_64")]
+            if let Some(avx2) = simd::Avx2::detect() {
+                // SAFETY: the witness says the CPU has AVX2.
+                return unsafe { self.cached_avx2(avx2, &mut cache, x, y) };
+            }
+            self.cached(simd::Scalar, &mut cache, x, y)
         })
+    }
+
+    /// The side of the point cache's cells (mm): half the width of the annulus in
+    /// which a ring can have support, so that a cell meets few rings' supports
+    /// (smaller cells meet fewer, but more of them must be built and kept: at d = 4 mm,
+    /// 0.2 mm cells and 0.1 mm ones differ by a tenth of a sample's time).
+    fn cell_mm(&self) -> f64 {
+        let (in2, out2) = self.rings.support2;
+        ((out2.sqrt() - in2.sqrt()) * 0.5).max(1e-6)
+    }
+
+    /// Ring `id` as the ring cache keeps it, for the surface `uid`.
+    fn cache_entry(&self, id: (i64, i64), uid: u64) -> CachedRing {
+        let d = self
+            .rings
+            .drawn(&self.path.nominal(id), self.path.is_spiral());
+        CachedRing {
+            uid,
+            id,
+            ring: self.rings.span_ring(&d),
+            key: d.key,
+        }
+    }
+
+    /// The ring cache's slot for ring `id`.
+    #[inline(always)]
+    fn ring_slot(id: (i64, i64)) -> usize {
+        (crate::hash::hash_tile(0, id.0, id.1) as usize) & (RING_CACHE_SLOTS - 1)
+    }
+
+    /// Ring `id` in its slot `slot` of the ring cache, drawn into it unless it is there.
+    #[inline(always)]
+    fn ring_in<'c>(
+        &self,
+        rings: &'c mut [CachedRing],
+        slot: usize,
+        id: (i64, i64),
+    ) -> &'c CachedRing {
+        let e = &mut rings[slot];
+        if !(e.uid == self.uid && e.id == id) {
+            *e = self.cache_entry(id, self.uid);
+        }
+        e
+    }
+
+    /// [`Self::cached`] compiled for AVX2, with all of it inlined (the evaluation
+    /// is no closure, which would not inherit the target feature).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 (which `avx2` witnesses).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn cached_avx2(&self, avx2: simd::Avx2, cache: &mut PointCache, x: f64, y: f64) -> f64 {
+        self.cached(avx2, cache, x, y)
+    }
+
+    /// The body of [`Self::eval_mm_cached`] over this thread's `cache`, four rings at
+    /// a time by `lanes`.
+    #[inline(always)]
+    fn cached(&self, lanes: impl simd::PointLanes, cache: &mut PointCache, x: f64, y: f64) -> f64 {
+        let side = self.cell_mm();
+        let cell = ((x / side).floor() as i64, (y / side).floor() as i64);
+        let mask = CELL_CACHE_SIDE as i64 - 1;
+        let slot = ((cell.0 & mask) + (cell.1 & mask) * CELL_CACHE_SIDE as i64) as usize;
+        let PointCache {
+            rings,
+            cells,
+            scratch,
+        } = cache;
+        let c = &mut cells[slot];
+        let lut = self.lut_array();
+        if c.uid == self.uid && c.cell == cell {
+            if c.groups.is_empty() {
+                self.build_cell(rings, scratch, cell, side, &mut c.groups);
+            }
+            let kind = self.rings.kind();
+            let mut f = 0.0;
+            for g in &c.groups {
+                let (mask, v, a) = lanes.group_at(g, kind, (x, y), lut, &self.noise_pad);
+                for q in 0..4 {
+                    f = ring::fold_step(kind.interaction, mask >> q & 1 != 0, f, v[q], a[q]);
+                }
+            }
+            return f;
+        }
+        // First time in this cell: remember it, and go through the ring cache.
+        c.uid = self.uid;
+        c.cell = cell;
+        c.groups.clear();
+        self.through_rings(lanes, rings, (x, y), lut)
+    }
+
+    /// The cell `cell` (side `side` mm): the rings that can cover any of its points, in
+    /// milling order, four to a group (the last padded with rings that cover nothing).
+    /// At least one group, so that a built cell is never empty.
+    fn build_cell(
+        &self,
+        rings: &mut [CachedRing],
+        scratch: &mut Vec<(Key, ring::SpanRing)>,
+        cell: (i64, i64),
+        side: f64,
+        groups: &mut Vec<ring::Group>,
+    ) {
+        let (x0, y0) = (cell.0 as f64 * side, cell.1 as f64 * side);
+        // The cell a hair larger than its side: a point's floor(x / side) may round
+        // across the border.
+        let margin = 1e-9 * side + 1e-12 * x0.abs().max(y0.abs());
+        let rect = (
+            x0 - margin,
+            y0 - margin,
+            x0 + side + margin,
+            y0 + side + margin,
+        );
+        scratch.clear();
+        self.rect_candidates(rect, |id| {
+            let e = self.ring_in(rings, Self::ring_slot(id), id);
+            if let Some((lo, hi)) = e.ring.support()
+                && rect_meets_annulus(rect, (e.ring.cx, e.ring.cy), lo, hi)
+            {
+                scratch.push((e.key, e.ring));
+            }
+        });
+        scratch.sort_unstable_by_key(|e| e.0);
+        groups.clear();
+        let none = match scratch.first() {
+            Some(e) => e.1,
+            None => self.cache_entry((0, 0), 0).ring,
+        }
+        .covering_nothing();
+        for chunk in scratch.chunks(4) {
+            let at = |q: usize| chunk.get(q).map_or(&none, |e| &e.1);
+            groups.push(ring::Group::from_rings([at(0), at(1), at(2), at(3)]));
+        }
+        if groups.is_empty() {
+            groups.push(ring::Group::from_rings([&none; 4]));
+        }
+    }
+
+    /// The point (x, y) (mm) through the ring cache: its candidate rings four at a
+    /// time, those covering it folded in milling order.
+    #[inline(always)]
+    fn through_rings(
+        &self,
+        lanes: impl simd::PointLanes,
+        rings: &mut [CachedRing],
+        (x, y): (f64, f64),
+        lut: &[f32; SHAPE_LUT],
+    ) -> f64 {
+        let m = &self.rings;
+        let mut ids: SmallVec<[(i64, i64); 16]> = SmallVec::new();
+        self.path
+            .candidates(x, y, m.reach_in, m.reach_out, |id| ids.push(id));
+        let mut found: SmallVec<[(Key, f64, f64); 16]> = SmallVec::new();
+        // Slots of the candidates not yet evaluated: at most 4, all distinct.
+        let mut pending = [0usize; 4];
+        let mut n = 0;
+        for &id in &ids {
+            let slot = Self::ring_slot(id);
+            if pending[..n].contains(&slot) {
+                // The slot may be about to change: evaluate what waits on it first.
+                self.covering(lanes, rings, &pending[..n], (x, y), lut, &mut found);
+                n = 0;
+            }
+            self.ring_in(rings, slot, id);
+            pending[n] = slot;
+            n += 1;
+            if n == 4 {
+                self.covering(lanes, rings, &pending, (x, y), lut, &mut found);
+                n = 0;
+            }
+        }
+        self.covering(lanes, rings, &pending[..n], (x, y), lut, &mut found);
+        fold_keyed(m.interaction, &mut found)
+    }
+
+    /// The rings in the cache slots `slots` (at most 4) at the point (x, y) (mm): each
+    /// that covers it is pushed to `found` as (key, R_k, A_k).
+    #[inline(always)]
+    fn covering(
+        &self,
+        lanes: impl simd::PointLanes,
+        cache: &[CachedRing],
+        slots: &[usize],
+        (x, y): (f64, f64),
+        lut: &[f32; SHAPE_LUT],
+        found: &mut SmallVec<[(Key, f64, f64); 16]>,
+    ) {
+        let Some(&last) = slots.last() else {
+            return;
+        };
+        let at = |q: usize| &cache[slots.get(q).copied().unwrap_or(last)];
+        let g = ring::Group::from_rings([&at(0).ring, &at(1).ring, &at(2).ring, &at(3).ring]);
+        let (mask, v, a) = lanes.group_at(&g, self.rings.kind(), (x, y), lut, &self.noise_pad);
+        for q in 0..slots.len() {
+            if mask >> q & 1 != 0 {
+                found.push((at(q).key, v[q], a[q]));
+            }
+        }
+    }
+
+    /// The shape table as the row and point paths read it.
+    #[inline(always)]
+    fn lut_array(&self) -> &[f32; SHAPE_LUT] {
+        self.lut[..]
+            .try_into()
+            .expect("the shape table has SHAPE_LUT entries (checked when loaded)")
     }
 
     /// Rows `rows` of `region` in blocks: the rings that can reach a block are found
@@ -429,28 +675,30 @@ impl MillingSurface {
         mut push: impl FnMut((i64, i64), ring::Drawn),
     ) {
         let m = &self.rings;
+        let (s_in, s_out) = (m.support2.0.sqrt(), m.support2.1.sqrt());
+        self.rect_candidates(rect, |id| {
+            let d = m.drawn(&self.path.nominal(id), spiral);
+            if rect_meets_annulus(rect, d.centre, s_in, s_out) {
+                push(id, d);
+            }
+        });
+    }
+
+    /// Calls `visit(id)` for every ring whose nominal centre is close enough to the
+    /// rectangle `rect` (mm) for the ring to reach it: the path's candidates of its
+    /// middle, with the reach widened by half its diagonal.
+    fn rect_candidates(&self, rect: (f64, f64, f64, f64), visit: impl FnMut((i64, i64))) {
+        let m = &self.rings;
         let (x0, y0, x1, y1) = rect;
         let (mx, my) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
         // Half the diagonal, a hair larger so rounding cannot drop a ring.
         let half = 0.5 * (x1 - x0).hypot(y1 - y0) * (1.0 + 1e-9) + 1e-12;
-        let (s_in, s_out) = (m.support2.0 * (1.0 - 1e-9), m.support2.1 * (1.0 + 1e-9));
         self.path.candidates(
             mx,
             my,
             (m.reach_in - half).max(0.0),
             m.reach_out + half,
-            |id| {
-                let d = m.drawn(&self.path.nominal(id), spiral);
-                // Nearest and farthest points of the rectangle from the ring's centre.
-                let (cx, cy) = d.centre;
-                let nx = (x0 - cx).max(cx - x1).max(0.0);
-                let ny = (y0 - cy).max(cy - y1).max(0.0);
-                let fx = (cx - x0).abs().max((x1 - cx).abs());
-                let fy = (cy - y0).abs().max((y1 - cy).abs());
-                if nx * nx + ny * ny <= s_out && fx * fx + fy * fy >= s_in {
-                    push(id, d);
-                }
-            },
+            visit,
         );
     }
 
@@ -495,9 +743,7 @@ impl MillingSurface {
         acc.clear();
         acc.resize((r1 - r0) * bw, 0.0);
         let xs: SmallVec<[f64; MAX_BLOCK]> = (c0..c1).map(|c| region.x_at(c) * s).collect();
-        let lut: &[f32; SHAPE_LUT] = self.lut[..]
-            .try_into()
-            .expect("the shape table has SHAPE_LUT entries");
+        let lut = self.lut_array();
         // Column of x (mm), before rounding, and how far its rounding can reach: a
         // millionth of a column, or 10⁻¹² of the coordinate (pixels) where that is more
         // (up to SPAN_LIMIT = 2⁴⁰ px, about one column).
@@ -510,7 +756,7 @@ impl MillingSurface {
             };
             let (in2, out2) = (lo * lo * (1.0 - 1e-9), hi * hi * (1.0 + 1e-9));
             let (cx, cy) = d.centre;
-            let mut k = m.span_ring(d, &self.noise_pad);
+            let mut k = m.span_ring(d);
             for r in r0..r1 {
                 let y = region.y_at(r) * s;
                 let dy2 = (y - cy) * (y - cy);
@@ -528,7 +774,7 @@ impl MillingSurface {
                         return;
                     }
                     let (a, b) = (a as usize - c0, b as usize - c0);
-                    k.fold(&xs[a..=b], &mut row[a..=b], lut);
+                    k.fold(&xs[a..=b], &mut row[a..=b], lut, &self.noise_pad);
                 });
             }
         }
@@ -663,6 +909,19 @@ impl Surface for MillingSurface {
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         self.fill_blocks(region, rows, out);
     }
+}
+
+/// Whether the annulus lo ≤ |p − centre| ≤ hi (mm) can meet the rectangle `rect`: its
+/// nearest point no farther than hi and its farthest no nearer than lo, each with a
+/// relative slack of 10⁻⁹ on the squares, far above their rounding.
+#[inline(always)]
+fn rect_meets_annulus(rect: (f64, f64, f64, f64), (cx, cy): (f64, f64), lo: f64, hi: f64) -> bool {
+    let (x0, y0, x1, y1) = rect;
+    let nx = (x0 - cx).max(cx - x1).max(0.0);
+    let ny = (y0 - cy).max(cy - y1).max(0.0);
+    let fx = (cx - x0).abs().max((x1 - cx).abs());
+    let fy = (cy - y0).abs().max((y1 - cy).abs());
+    nx * nx + ny * ny <= hi * hi * (1.0 + 1e-9) && fx * fx + fy * fy >= lo * lo * (1.0 - 1e-9)
 }
 
 /// f at a point from the rings covering it, each as (milling-order key, R_k, A_k), in

@@ -556,11 +556,11 @@ impl RingModel {
         self.noise_amplitude * NOISE_UNIT * (a + (b - a) * f)
     }
 
-    /// Ring `d` ready to be folded into rows ([`SpanRing::fold`]); `noise` holds the
-    /// profiles as [`pad_noise`] lays them out.
+    /// Ring `d` ready to be folded into rows ([`SpanRing::fold`]) or evaluated at
+    /// points ([`SpanRing::parts`], [`super::simd::at_point`]).
     #[inline(always)]
-    pub(crate) fn span_ring<'a>(&self, d: &Drawn, noise: &'a [i16]) -> SpanRing<'a> {
-        SpanRing::new(self, d, noise)
+    pub(crate) fn span_ring(&self, d: &Drawn) -> SpanRing {
+        SpanRing::new(self, d)
     }
 
     /// The radii (mm) between which ring `d` can cover a point, or None if it covers
@@ -588,6 +588,16 @@ impl RingModel {
             hi.min(self.support2.1.sqrt()),
         );
         (ind || inner || outer).then_some((lo.max(0.0), hi))
+    }
+
+    /// What the ring arithmetic branches on: the same for every ring of the model.
+    #[inline(always)]
+    pub(crate) fn kind(&self) -> Kind {
+        Kind {
+            indicator: self.shape == ShapeKind::Indicator,
+            with_noise: self.noise_amplitude > 0.0,
+            interaction: self.interaction,
+        }
     }
 
     /// Everything about ring `ring` that does not depend on the point, drawn at once:
@@ -618,63 +628,70 @@ impl RingModel {
     }
 }
 
-/// What a row fill needs of one ring on one row: the constants of
-/// [`Drawn::value`]'s arithmetic, worked out once. Shared by the scalar path
-/// ([`SpanRing::point`]) and the AVX2 one ([`super::simd`]), which do the same
-/// operations in the same order.
-pub(crate) struct SpanRing<'a> {
+/// What every ring of a model shares and the ring arithmetic branches on (once per
+/// ring or group, never per point).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Kind {
+    pub(crate) indicator: bool,
+    pub(crate) with_noise: bool,
+    pub(crate) interaction: InteractionKind,
+}
+
+/// What a row fill or a point needs of one ring: the constants of [`Drawn::value`]'s
+/// arithmetic, worked out once (a region fill makes them per ring and block, the
+/// point path per ring it caches), and the terms of the current row. Shared by the
+/// scalar path ([`SpanRing::parts`]) and the AVX2 one ([`super::simd`]: the ring in
+/// every lane on a row, or four rings as a [`Group`] at a point), which do the same
+/// operations in the same order. The parts are indexed
+/// [`Part`]-wise: indentation, inner, outer.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SpanRing {
     pub(crate) cx: f64,
-    cy: f64,
+    pub(crate) cy: f64,
     pub(crate) dy: f64,
     pub(crate) dy2: f64,
     pub(crate) r: f64,
     /// r − w⁻: where the indentation starts.
     pub(crate) edge: f64,
-    pub(crate) has_ind: bool,
-    pub(crate) has_in: bool,
-    pub(crate) has_out: bool,
+    /// Whether each part has a positive width.
+    pub(crate) has: [bool; 3],
     /// Profile centres of the parts.
-    pub(crate) c_ind: f64,
-    pub(crate) c_in: f64,
-    pub(crate) c_out: f64,
+    pub(crate) centre: [f64; 3],
     /// 2 / the profile widths of the parts (w⁻, w⁺ⁱ, w⁺ᵒ).
-    pub(crate) k_ind: f64,
-    pub(crate) k_in: f64,
-    pub(crate) k_out: f64,
+    pub(crate) scale: [f64; 3],
     /// The inner part's lower and the outer part's upper bound.
     pub(crate) in_lo: f64,
     pub(crate) out_hi: f64,
-    /// Each part's plane as (h − l, ½(h + l)): `shape_plane`'s two terms.
-    pub(crate) p_ind: (f64, f64),
-    pub(crate) p_in: (f64, f64),
-    pub(crate) p_out: (f64, f64),
-    pub(crate) indicator: bool,
+    /// Each part's plane as h − l and ½(h + l): `shape_plane`'s two terms.
+    pub(crate) slope: [f64; 3],
+    pub(crate) mid: [f64; 3],
+    pub(crate) kind: Kind,
     pub(crate) cos_t: f64,
-    sin_t: f64,
+    pub(crate) sin_t: f64,
     /// sin θ·dy, the row's share of the position along the motion.
     pub(crate) along_y: f64,
     pub(crate) to_along: f64,
     /// The convex weight as (a − b, ½(a + b)).
     pub(crate) w_slope: f64,
     pub(crate) w_mid: f64,
-    pub(crate) interaction: InteractionKind,
-    pub(crate) with_noise: bool,
     pub(crate) amplitude: f64,
     pub(crate) rotation: f64,
-    /// The ring's noise profile, padded ([`pad_noise`]).
-    pub(crate) noise: &'a [i16; NOISE_SAMPLES + 1],
+    /// Where the ring's noise profile starts in the padded profiles ([`pad_noise`]):
+    /// a multiple of NOISE_SAMPLES + 1 below [`PADDED_NOISE`].
+    pub(crate) noise_row: usize,
 }
 
-impl<'a> SpanRing<'a> {
+/// Entries of the padded noise profiles ([`pad_noise`]).
+pub(crate) const PADDED_NOISE: usize = NOISE_PROFILES * (NOISE_SAMPLES + 1);
+
+impl SpanRing {
     #[inline(always)]
-    fn new(m: &RingModel, d: &Drawn, noise: &'a [i16]) -> SpanRing<'a> {
+    fn new(m: &RingModel, d: &Drawn) -> SpanRing {
         let r = m.r;
         let bump = m.shape == ShapeKind::Bump;
         let edge = r - d.w_minus;
-        let plane = |(low, high): (f64, f64)| (high - low, 0.5 * (high + low));
         let (wa, wb) = d.weights;
         let profile = (d.noise_word as usize >> 10) % NOISE_PROFILES;
-        let row = NOISE_SAMPLES + 1;
         SpanRing {
             cx: d.centre.0,
             cy: d.centre.1,
@@ -682,34 +699,56 @@ impl<'a> SpanRing<'a> {
             dy2: 0.0,
             r,
             edge,
-            has_ind: d.w_minus > 0.0,
-            has_in: bump && d.w_inner > 0.0,
-            has_out: bump && d.w_outer > 0.0,
-            c_ind: r - 0.5 * d.w_minus,
-            c_in: edge - 0.5 * d.w_inner,
-            c_out: r + 0.5 * d.w_outer,
-            k_ind: 2.0 / d.w_minus,
-            k_in: 2.0 / d.w_inner,
-            k_out: 2.0 / d.w_outer,
+            has: [
+                d.w_minus > 0.0,
+                bump && d.w_inner > 0.0,
+                bump && d.w_outer > 0.0,
+            ],
+            centre: [
+                r - 0.5 * d.w_minus,
+                edge - 0.5 * d.w_inner,
+                r + 0.5 * d.w_outer,
+            ],
+            scale: [2.0 / d.w_minus, 2.0 / d.w_inner, 2.0 / d.w_outer],
             in_lo: edge - d.w_inner,
             out_hi: r + d.w_outer,
-            p_ind: plane(d.planes[0]),
-            p_in: plane(d.planes[1]),
-            p_out: plane(d.planes[2]),
-            indicator: m.shape == ShapeKind::Indicator,
+            slope: d.planes.map(|(low, high)| high - low),
+            mid: d.planes.map(|(low, high)| 0.5 * (high + low)),
+            kind: m.kind(),
             cos_t: d.dir.0,
             sin_t: d.dir.1,
             along_y: 0.0,
             to_along: 0.5 / m.r,
             w_slope: wa - wb,
             w_mid: 0.5 * (wa + wb),
-            interaction: m.interaction,
-            with_noise: m.noise_amplitude > 0.0,
             amplitude: m.noise_amplitude * NOISE_UNIT,
             rotation: (d.noise_word & 0x3FF) as f64 * (1.0 / 1024.0),
-            noise: noise[profile * row..(profile + 1) * row]
-                .try_into()
-                .expect("a padded noise profile has NOISE_SAMPLES + 1 entries"),
+            noise_row: profile * (NOISE_SAMPLES + 1),
+        }
+    }
+
+    /// The radii (mm) between which the ring can cover a point: its parts' union as
+    /// [`Self::parts`] bounds them, or None if it has none.
+    #[inline(always)]
+    pub(crate) fn support(&self) -> Option<(f64, f64)> {
+        let [ind, inner, outer] = self.has;
+        let lo = if inner {
+            self.in_lo
+        } else if ind {
+            self.edge
+        } else {
+            self.r
+        };
+        let hi = if outer { self.out_hi } else { self.r };
+        (ind || inner || outer).then_some((lo.max(0.0), hi))
+    }
+
+    /// The same ring with no parts: it covers no point (the padding of a [`Group`]).
+    #[inline(always)]
+    pub(crate) fn covering_nothing(&self) -> SpanRing {
+        SpanRing {
+            has: [false; 3],
+            ..*self
         }
     }
 
@@ -728,40 +767,49 @@ impl<'a> SpanRing<'a> {
     /// numbers. Every point goes through the same straight-line code (the part of the
     /// ring, the shape, plane and noise chosen by selects, not branches; a point off
     /// the support computes a value and drops it): four points per instruction where
-    /// the CPU has AVX2 ([`super::simd`]), one by one otherwise.
+    /// the CPU has AVX2 ([`super::simd`]), one by one otherwise. `noise` holds the
+    /// profiles as [`pad_noise`] lays them out.
     #[inline(always)]
-    pub(crate) fn fold(&self, xs: &[f64], row: &mut [f64], lut: &[f32; SHAPE_LUT]) {
+    pub(crate) fn fold(&self, xs: &[f64], row: &mut [f64], lut: &[f32; SHAPE_LUT], noise: &Padded) {
         let n = xs.len().min(row.len());
-        let done = super::simd::span(self, &xs[..n], &mut row[..n], lut);
+        let done = super::simd::span(self, &xs[..n], &mut row[..n], lut, noise);
         for (f, &x) in row[done..n].iter_mut().zip(&xs[done..n]) {
-            *f = self.point(x, *f, lut);
+            *f = self.point(x, *f, lut, noise);
         }
     }
 
-    /// The fold at one point x of the row, f the value so far: [`Drawn::value`] and
+    /// The fold at one point x of the row, f the value so far: [`Self::parts`] and
     /// `fold_keyed`'s step, without branches on the point.
     #[inline(always)]
-    pub(crate) fn point(&self, x: f64, f: f64, lut: &[f32; SHAPE_LUT]) -> f64 {
+    pub(crate) fn point(&self, x: f64, f: f64, lut: &[f32; SHAPE_LUT], noise: &Padded) -> f64 {
+        let (covered, v, a) = self.parts(x, lut, noise);
+        fold_step(self.kind.interaction, covered, f, v, a)
+    }
+
+    /// At the point x of the row: whether the ring covers it, and its R_k and A_k
+    /// there (A_k only for the convex interaction), as [`Drawn::value`] gives them,
+    /// without branches on the point (a point off the ring gets a value to drop).
+    #[inline(always)]
+    pub(crate) fn parts(&self, x: f64, lut: &[f32; SHAPE_LUT], noise: &Padded) -> (bool, f64, f64) {
         let dx = x - self.cx;
         let d2 = dx * dx + self.dy2;
         let dist = d2.sqrt();
-        let ind = self.has_ind & (dist >= self.edge) & (dist <= self.r);
+        let [has_ind, has_in, has_out] = self.has;
+        let ind = has_ind & (dist >= self.edge) & (dist <= self.r);
         let below = dist < self.edge;
-        let inner = !ind & self.has_in & below & (dist >= self.in_lo);
-        let outer = !ind & self.has_out & !below & (dist > self.r) & (dist <= self.out_hi);
+        let inner = !ind & has_in & below & (dist >= self.in_lo);
+        let outer = !ind & has_out & !below & (dist > self.r) & (dist <= self.out_hi);
         // `Drawn::value` first asks for d² within the model's support annulus
         // `support2`; every part lies inside it with a margin of 10⁻¹² of the radius
         // (the widths' truncation at 4σ bounds them), far above the rounding of d² and
         // √d², so a point in a part passes that test and it is left out here.
         let covered = ind | inner | outer;
-        let centre = select(ind, self.c_ind, select(inner, self.c_in, self.c_out));
-        let scale = select(ind, self.k_ind, select(inner, self.k_in, self.k_out));
-        let slope = select(ind, self.p_ind.0, select(inner, self.p_in.0, self.p_out.0));
-        let mid = select(ind, self.p_ind.1, select(inner, self.p_in.1, self.p_out.1));
-        let s = if self.indicator {
+        let pick = |p: [f64; 3]| select(ind, p[0], select(inner, p[1], p[2]));
+        let (slope, mid) = (pick(self.slope), pick(self.mid));
+        let s = if self.kind.indicator {
             -1.0
         } else {
-            let dd = ((dist - centre) * scale).clamp(-1.0, 1.0);
+            let dd = ((dist - pick(self.centre)) * pick(self.scale)).clamp(-1.0, 1.0);
             let pos = (dd + 1.0) * (0.5 * (SHAPE_LUT - 1) as f64);
             let i = (pos as usize).min(SHAPE_LUT - 2);
             let t = pos - i as f64;
@@ -770,23 +818,140 @@ impl<'a> SpanRing<'a> {
         };
         let along = (self.cos_t * dx + self.along_y) * self.to_along;
         let mut v = s * (slope * along + mid);
-        if self.with_noise {
+        if self.kind.with_noise {
             let turn = atan2_turns(self.dy, dx) + self.rotation;
             let pos = (turn - turn.floor()) * NOISE_SAMPLES as f64;
             let i = (pos as usize).min(NOISE_SAMPLES - 1);
             let t = pos - i as f64;
-            let (a, b) = (self.noise[i] as f64, self.noise[i + 1] as f64);
+            let profile = &noise.0[self.noise_row..self.noise_row + NOISE_SAMPLES + 1];
+            let (a, b) = (profile[i] as f64, profile[i + 1] as f64);
             v += self.amplitude * (a + (b - a) * t);
         }
-        let folded = match self.interaction {
-            InteractionKind::Min => fold_min(f, v),
-            InteractionKind::Latest => v,
-            InteractionKind::Convex => {
-                let a = (self.w_slope * along + self.w_mid).clamp(0.0, 1.0);
-                a * v + (1.0 - a) * f
-            }
+        let a = match self.kind.interaction {
+            InteractionKind::Convex => (self.w_slope * along + self.w_mid).clamp(0.0, 1.0),
+            _ => 1.0,
         };
-        select(covered, folded, f)
+        (covered, v, a)
+    }
+}
+
+/// Four rings' [`SpanRing`] constants, a ring to a lane, as the AVX2 path loads them
+/// (one aligned vector per field); what the point path keeps per cell. The row terms
+/// are not kept: a point computes them for its own y.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct Group {
+    pub(crate) cx: [f64; 4],
+    pub(crate) cy: [f64; 4],
+    pub(crate) r: [f64; 4],
+    pub(crate) edge: [f64; 4],
+    pub(crate) in_lo: [f64; 4],
+    pub(crate) out_hi: [f64; 4],
+    pub(crate) centre: [[f64; 4]; 3],
+    pub(crate) scale: [[f64; 4]; 3],
+    pub(crate) slope: [[f64; 4]; 3],
+    pub(crate) mid: [[f64; 4]; 3],
+    pub(crate) cos_t: [f64; 4],
+    pub(crate) sin_t: [f64; 4],
+    pub(crate) to_along: [f64; 4],
+    pub(crate) w_slope: [f64; 4],
+    pub(crate) w_mid: [f64; 4],
+    pub(crate) amplitude: [f64; 4],
+    pub(crate) rotation: [f64; 4],
+    /// Lane masks (all ones or all zeros) of [`SpanRing::has`].
+    pub(crate) has: [[u64; 4]; 3],
+    pub(crate) noise_row: [i32; 4],
+}
+
+impl Group {
+    /// Ring `ks[q]` in lane q.
+    #[inline(always)]
+    pub(crate) fn from_rings(ks: [&SpanRing; 4]) -> Group {
+        #[inline(always)]
+        fn lanes<T, const N: usize>(
+            ks: [&SpanRing; 4],
+            f: impl Fn(&SpanRing) -> [T; N],
+        ) -> [[T; 4]; N]
+        where
+            T: Copy + Default,
+        {
+            let mut out = [[T::default(); 4]; N];
+            for (q, k) in ks.iter().enumerate() {
+                for (p, v) in f(k).into_iter().enumerate() {
+                    out[p][q] = v;
+                }
+            }
+            out
+        }
+        let lane = |f: fn(&SpanRing) -> f64| lanes(ks, |k| [f(k)])[0];
+        let parts = |f: fn(&SpanRing) -> [f64; 3]| lanes(ks, f);
+        Group {
+            cx: lane(|k| k.cx),
+            cy: lane(|k| k.cy),
+            r: lane(|k| k.r),
+            edge: lane(|k| k.edge),
+            in_lo: lane(|k| k.in_lo),
+            out_hi: lane(|k| k.out_hi),
+            centre: parts(|k| k.centre),
+            scale: parts(|k| k.scale),
+            slope: parts(|k| k.slope),
+            mid: parts(|k| k.mid),
+            cos_t: lane(|k| k.cos_t),
+            sin_t: lane(|k| k.sin_t),
+            to_along: lane(|k| k.to_along),
+            w_slope: lane(|k| k.w_slope),
+            w_mid: lane(|k| k.w_mid),
+            amplitude: lane(|k| k.amplitude),
+            rotation: lane(|k| k.rotation),
+            has: lanes(ks, |k| k.has.map(|h| (h as u64).wrapping_neg())),
+            noise_row: lanes(ks, |k| [k.noise_row as i32])[0],
+        }
+    }
+
+    /// The ring of lane q (of a model of kind `kind`), on row 0: the scalar twin's
+    /// view of the group.
+    #[inline(always)]
+    pub(crate) fn ring(&self, q: usize, kind: Kind) -> SpanRing {
+        let part = |f: &[[f64; 4]; 3]| [f[0][q], f[1][q], f[2][q]];
+        SpanRing {
+            cx: self.cx[q],
+            cy: self.cy[q],
+            dy: 0.0,
+            dy2: 0.0,
+            r: self.r[q],
+            edge: self.edge[q],
+            has: [0, 1, 2].map(|p| self.has[p][q] != 0),
+            centre: part(&self.centre),
+            scale: part(&self.scale),
+            in_lo: self.in_lo[q],
+            out_hi: self.out_hi[q],
+            slope: part(&self.slope),
+            mid: part(&self.mid),
+            kind,
+            cos_t: self.cos_t[q],
+            sin_t: self.sin_t[q],
+            along_y: 0.0,
+            to_along: self.to_along[q],
+            w_slope: self.w_slope[q],
+            w_mid: self.w_mid[q],
+            amplitude: self.amplitude[q],
+            rotation: self.rotation[q],
+            noise_row: self.noise_row[q] as usize,
+        }
+    }
+}
+
+/// The noise profiles laid out for the row fills and the point path ([`pad_noise`]):
+/// exactly [`PADDED_NOISE`] entries, which the AVX2 gathers rely on.
+#[derive(Clone, Debug)]
+pub(crate) struct Padded(Box<[i16; PADDED_NOISE]>);
+
+impl Padded {
+    /// The entries, for the gathers.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub(crate) fn as_ptr(&self) -> *const i16 {
+        self.0.as_ptr()
     }
 }
 
@@ -797,6 +962,24 @@ pub(crate) fn fold_min(f: f64, v: f64) -> f64 {
     if v < f { v } else { f }
 }
 
+/// One step of the interaction's fold, f_k = f(f_{k−1}, R_k) with weight A_k, where
+/// the ring covers the point (`covered`), else f itself; without branches.
+#[inline(always)]
+pub(crate) fn fold_step(
+    interaction: InteractionKind,
+    covered: bool,
+    f: f64,
+    v: f64,
+    a: f64,
+) -> f64 {
+    let folded = match interaction {
+        InteractionKind::Min => fold_min(f, v),
+        InteractionKind::Latest => v,
+        InteractionKind::Convex => a * v + (1.0 - a) * f,
+    };
+    select(covered, folded, f)
+}
+
 /// `if c { a } else { b }`, written so that it compiles to a select, not a branch.
 #[inline(always)]
 fn select(c: bool, a: f64, b: f64) -> f64 {
@@ -804,14 +987,25 @@ fn select(c: bool, a: f64, b: f64) -> f64 {
     f64::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
 }
 
-/// The noise profiles laid out for the row fills: each followed by a copy of its first
-/// sample, so the interpolation's next sample is always the next entry (and the AVX2
-/// path reads both in one 32-bit load).
-pub fn pad_noise(noise: &[i16]) -> Vec<i16> {
-    noise
+/// The noise profiles laid out for the row fills and the point path: each followed by
+/// a copy of its first sample, so the interpolation's next sample is always the next
+/// entry (and the AVX2 path reads both in one 32-bit load).
+pub(crate) fn pad_noise(noise: &[i16]) -> Padded {
+    assert_eq!(
+        noise.len(),
+        NOISE_PROFILES * NOISE_SAMPLES,
+        "the quantised noise holds NOISE_PROFILES profiles of NOISE_SAMPLES"
+    );
+    let padded: Vec<i16> = noise
         .chunks_exact(NOISE_SAMPLES)
         .flat_map(|p| p.iter().chain(&p[..1]).copied())
-        .collect()
+        .collect();
+    Padded(
+        padded
+            .into_boxed_slice()
+            .try_into()
+            .expect("NOISE_PROFILES padded profiles"),
+    )
 }
 
 /// The point-independent draws of one ring ([`RingModel::drawn`]).
@@ -925,7 +1119,7 @@ mod tests {
                 for id in 0..12i64 {
                     let d = m.drawn(&path.nominal((id % 3, id)), false);
                     let (lo, hi) = m.support_radii(&d).unwrap();
-                    let mut k = m.span_ring(&d, &noise_pad);
+                    let mut k = m.span_ring(&d);
                     let mut state = (id as u64 + 1) * 0x9E37_79B9_7F4A_7C15;
                     for row in 0..40 {
                         let y = d.centre.1 - hi + 2.0 * hi * (row as f64 + 0.5) / 40.0;
@@ -951,9 +1145,9 @@ mod tests {
                             })
                             .collect();
                         let mut simd = f0.clone();
-                        k.fold(&xs, &mut simd, lut);
+                        k.fold(&xs, &mut simd, lut, &noise_pad);
                         for i in 0..n {
-                            let scalar = k.point(xs[i], f0[i], lut);
+                            let scalar = k.point(xs[i], f0[i], lut, &noise_pad);
                             let want = match d.value(&m, xs[i], y, lut, &noise_q) {
                                 Some(v) => {
                                     covered += 1;
@@ -980,6 +1174,95 @@ mod tests {
         assert!(
             covered > total / 4,
             "only {covered} of {total} points covered"
+        );
+    }
+
+    /// A [`Group`] of four different rings evaluated at a point, four lanes per
+    /// instruction where the CPU has AVX2 and lane by lane by the scalar twin, gives
+    /// each ring's [`Drawn::value`] in f64 bits, for every shape × interaction, at
+    /// points spread over the rings' supports (and off them); a padding lane
+    /// ([`SpanRing::covering_nothing`]) covers nothing.
+    #[test]
+    fn groups_equal_their_rings_in_f64_bits() {
+        use super::super::config::MillingConfig;
+        use super::super::path::ToolPath;
+        use super::super::simd::{PointLanes, Scalar};
+        let lut: Vec<f32> = shape_table();
+        let lut: &[f32; SHAPE_LUT] = lut[..].try_into().unwrap();
+        let noise_q = quantise_noise(&noise_profiles(50.0, 50.0, 4));
+        let noise_pad = pad_noise(&noise_q);
+        let (mut covered, mut total) = (0usize, 0usize);
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut u = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for shape in ["indicator", "cosine", "bump"] {
+            for interaction in ["min", "latest", "convex"] {
+                let text = format!(
+                    "[shape]\nkind = \"{shape}\"\n[interaction]\nkind = \"{interaction}\"\n[path]\nkind = \"parallel\"\nangle_deg = 20.0\n"
+                );
+                let c = MillingConfig::from_toml(&text, "test").unwrap();
+                let m = RingModel::new(&c, 5);
+                let path = ToolPath::new(&c);
+                for id in 0..8i64 {
+                    // Four neighbouring rings of two lines; the last lane padding in
+                    // every other group.
+                    let ds = [0, 1, 2, 3].map(|q| m.drawn(&path.nominal((id + q, q % 2)), false));
+                    let ks = ds.map(|d| m.span_ring(&d));
+                    let pad = ks[3].covering_nothing();
+                    let last = if id % 2 == 0 { &pad } else { &ks[3] };
+                    let g = Group::from_rings([&ks[0], &ks[1], &ks[2], last]);
+                    for _ in 0..300 {
+                        // A point on or near the support of one of the rings.
+                        let d = &ds[(u() * 4.0) as usize % 4];
+                        let (lo, hi) = m.support_radii(d).unwrap();
+                        let radius = lo - 0.05 + (hi - lo + 0.1) * u();
+                        let angle = std::f64::consts::TAU * u();
+                        let (x, y) = (
+                            d.centre.0 + radius * angle.cos(),
+                            d.centre.1 + radius * angle.sin(),
+                        );
+                        let scalar = Scalar.group_at(&g, m.kind(), (x, y), lut, &noise_pad);
+                        #[cfg(target_arch = "x86_64")]
+                        if let Some(avx2) = super::super::simd::Avx2::detect() {
+                            let wide = avx2.group_at(&g, m.kind(), (x, y), lut, &noise_pad);
+                            assert_eq!(
+                                (wide.0, wide.1.map(f64::to_bits), wide.2.map(f64::to_bits)),
+                                (
+                                    scalar.0,
+                                    scalar.1.map(f64::to_bits),
+                                    scalar.2.map(f64::to_bits)
+                                ),
+                                "{shape} {interaction} rings {id}.. at ({x}, {y})"
+                            );
+                        }
+                        for (q, d) in ds.iter().enumerate() {
+                            let want = if q == 3 && id % 2 == 0 {
+                                None
+                            } else {
+                                d.value(&m, x, y, lut, &noise_q)
+                            };
+                            let got =
+                                (scalar.0 >> q & 1 != 0).then_some((scalar.1[q], scalar.2[q]));
+                            total += 1;
+                            covered += want.is_some() as usize;
+                            assert_eq!(
+                                got.map(|(v, a)| (v.to_bits(), a.to_bits())),
+                                want.map(|w| (w.r.to_bits(), w.a.to_bits())),
+                                "{shape} {interaction} ring {} lane {q} at ({x}, {y})",
+                                id + q as i64
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            covered > total / 8,
+            "only {covered} of {total} lane values covered"
         );
     }
 
