@@ -90,17 +90,6 @@ fn bench(c: &mut Criterion) {
             })
         });
         // The twin renders 8 rows spread over the image (6560 samples) per iteration.
-        let mut field = 0.0f64;
-        g.bench_function(format!("{preset}/indexed_height_cold"), |b| {
-            b.iter(|| {
-                // A fresh field 20 mm (3279 px) on, every iteration.
-                field += 3279.0;
-                points
-                    .iter()
-                    .map(|&(x, y)| s.height(black_box(x + field), black_box(y)))
-                    .sum::<f32>()
-            })
-        });
         let twin = BruteForce::new(&s, 0.0, 0.0, 820.0, 820.0);
         g.throughput(Throughput::Elements(8 * 820));
         g.bench_function(format!("{preset}/brute_force_8_rows"), |b| {
