@@ -557,7 +557,7 @@ impl RingModel {
     }
 
     /// Ring `d` ready to be folded into rows ([`SpanRing::fold`]) or evaluated at
-    /// points ([`SpanRing::parts`], [`super::simd::at_point`]).
+    /// points ([`SpanRing::parts`], or four rings at once as a [`Group`]).
     #[inline(always)]
     pub(crate) fn span_ring(&self, d: &Drawn) -> SpanRing {
         SpanRing::new(self, d)

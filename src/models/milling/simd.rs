@@ -3,7 +3,7 @@
 //! under one ring ([`SpanRing::fold`]), or one point under four rings ([`Group`],
 //! the point path of `MillingSurface::eval_mm_cached`).
 //!
-//! Each step is the scalar [`SpanRing::parts`]', in the same order, with IEEE
+//! Each step is that of the scalar [`SpanRing::parts`], in the same order, with IEEE
 //! operations that round alike in every lane (add, subtract, multiply, divide, square
 //! root, floor, comparisons; no fused multiply-add), and the selects and clamps spelt
 //! out as the scalar code defines them, so every lane gives the scalar path's bits
@@ -352,9 +352,10 @@ mod x86 {
         /// Group `g` on the row whose terms are `dy`, `dy2`, `along_y`.
         #[inline(always)]
         unsafe fn load(g: &Group, dy: __m256d, dy2: __m256d, along_y: __m256d) -> Lanes {
-            // SAFETY: inlined where the CPU has AVX2; each load reads a 32-byte
-            // aligned field of 4 values (`Group` is 32-byte aligned and every field
-            // a multiple of 32 bytes from its start), the last 16 bytes.
+            // SAFETY: inlined where the CPU has AVX2; each aligned load reads one
+            // field of 4 f64 or u64 (`Group` is `repr(C, align(32))` and every such
+            // field lies a multiple of 32 bytes from its start), and the unaligned
+            // one the 16 bytes of `noise_row`.
             unsafe {
                 let v = |f: &[f64; 4]| _mm256_load_pd(f.as_ptr());
                 let p = |f: &[[f64; 4]; 3]| [v(&f[0]), v(&f[1]), v(&f[2])];
