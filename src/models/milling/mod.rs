@@ -364,18 +364,7 @@ impl MillingSurface {
                 // Only if a ring's evaluation re-entered height() on this thread.
                 return self.eval_mm(x, y);
             };
-            if cache.rings.is_empty() {
-                // Empty slots: uid 0 is never a surface's.
-                let placeholder = self.cache_entry((0, 0), 0);
-                cache.rings.resize(RING_CACHE_SLOTS, placeholder);
-                cache.cells = (0..CELL_CACHE_SIDE * CELL_CACHE_SIDE)
-                    .map(|_| CachedCell {
-                        uid: 0,
-                        cell: (0, 0),
-                        groups: Vec::new(),
-                    })
-                    .collect();
-            }
+            self.ready(&mut cache);
             #[cfg(target_arch = "x86_64")]
             if let Some(avx2) = simd::Avx2::detect() {
                 // SAFETY: the witness says the CPU has AVX2.
@@ -383,6 +372,22 @@ impl MillingSurface {
             }
             self.cached(simd::Scalar, &mut cache, x, y)
         })
+    }
+
+    /// Gives a thread's point cache its slots, all empty, unless it has them.
+    fn ready(&self, cache: &mut PointCache) {
+        if cache.rings.is_empty() {
+            // Empty slots: uid 0 is never a surface's.
+            let placeholder = self.cache_entry((0, 0), 0);
+            cache.rings.resize(RING_CACHE_SLOTS, placeholder);
+            cache.cells = (0..CELL_CACHE_SIDE * CELL_CACHE_SIDE)
+                .map(|_| CachedCell {
+                    uid: 0,
+                    cell: (0, 0),
+                    groups: Vec::new(),
+                })
+                .collect();
+        }
     }
 
     /// The side of the point cache's cells (mm): half the width of the annulus in
@@ -990,5 +995,62 @@ impl<'a> BruteForce<'a> {
             };
         }
         s.adapt(f)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The point path as CPUs without AVX2 run it (`simd::Scalar`, which the AVX2
+    /// machines of CI would otherwise never take) gives [`MillingSurface::eval_mm`]'s
+    /// bits, through the ring cache (a cell's first point) and through built cells (its
+    /// later ones), on a parallel and a spiral path, for every interaction.
+    #[test]
+    fn the_scalar_point_path_equals_the_uncached_one() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut u = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut points, mut nonzero) = (0usize, 0usize);
+        for path in [
+            "parallel\"\nangle_deg = 30.0",
+            "spiral\"\norigin_mm = [0.7, -0.4]",
+        ] {
+            for interaction in ["min", "latest", "convex"] {
+                let text = format!(
+                    "[interaction]\nkind = \"{interaction}\"\n[path]\nkind = \"{path}\nreorder = 0.3\n"
+                );
+                let c = MillingConfig::from_toml(&text, "test").unwrap();
+                let s = MillingSurface::new(&c, 6.1, 3).unwrap();
+                let mut cache = PointCache::default();
+                s.ready(&mut cache);
+                for _ in 0..400 {
+                    let (x, y) = (3.0 * (u() - 0.5), 3.0 * (u() - 0.5));
+                    let want = s.eval_mm(x, y);
+                    for ask in 0..2 {
+                        let got = s.cached(simd::Scalar, &mut cache, x, y);
+                        assert_eq!(
+                            got.to_bits(),
+                            want.to_bits(),
+                            "{text}\nat ({x}, {y}) mm, ask {ask}: scalar {got}, uncached {want}"
+                        );
+                    }
+                    points += 1;
+                    nonzero += (want != 0.0) as usize;
+                }
+                assert!(
+                    cache.cells.iter().any(|c| !c.groups.is_empty()),
+                    "{text}: no cell was built"
+                );
+            }
+        }
+        assert!(
+            nonzero > points / 2,
+            "only {nonzero} of {points} points touched"
+        );
     }
 }
