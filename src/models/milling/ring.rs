@@ -1080,6 +1080,35 @@ pub fn quantise_noise(profiles: &[f32]) -> Vec<i16> {
 mod tests {
     use super::*;
 
+    /// The shape table and the quantised noise profiles, plain and padded, that the
+    /// bit-for-bit tests read.
+    fn tables() -> (Vec<f32>, Vec<i16>, Padded) {
+        let noise_q = quantise_noise(&noise_profiles(50.0, 50.0, 4));
+        let noise_pad = pad_noise(&noise_q);
+        (shape_table(), noise_q, noise_pad)
+    }
+
+    /// Calls `f(shape, interaction, model, path)` for every shape × interaction, on a
+    /// parallel path at 20°.
+    fn each_shape_and_interaction(
+        mut f: impl FnMut(&str, &str, RingModel, super::super::path::ToolPath),
+    ) {
+        for shape in ["indicator", "cosine", "bump"] {
+            for interaction in ["min", "latest", "convex"] {
+                let text = format!(
+                    "[shape]\nkind = \"{shape}\"\n[interaction]\nkind = \"{interaction}\"\n[path]\nkind = \"parallel\"\nangle_deg = 20.0\n"
+                );
+                let c = super::super::config::MillingConfig::from_toml(&text, "test").unwrap();
+                f(
+                    shape,
+                    interaction,
+                    RingModel::new(&c, 5),
+                    super::super::path::ToolPath::new(&c),
+                );
+            }
+        }
+    }
+
     #[test]
     fn hashed_normals_have_unit_variance_and_are_truncated() {
         let n = 200_000u32;
@@ -1101,76 +1130,64 @@ mod tests {
     /// so far that include ±0. (The fill test compares f32 heights; this compares f64.)
     #[test]
     fn row_folds_equal_point_values_in_f64_bits() {
-        use super::super::config::MillingConfig;
-        use super::super::path::ToolPath;
-        let lut: Vec<f32> = shape_table();
+        let (lut, noise_q, noise_pad) = tables();
         let lut: &[f32; SHAPE_LUT] = lut[..].try_into().unwrap();
-        let noise_q = quantise_noise(&noise_profiles(50.0, 50.0, 4));
-        let noise_pad = pad_noise(&noise_q);
         let (mut covered, mut total) = (0usize, 0usize);
-        for shape in ["indicator", "cosine", "bump"] {
-            for interaction in ["min", "latest", "convex"] {
-                let text = format!(
-                    "[shape]\nkind = \"{shape}\"\n[interaction]\nkind = \"{interaction}\"\n[path]\nkind = \"parallel\"\nangle_deg = 20.0\n"
-                );
-                let c = MillingConfig::from_toml(&text, "test").unwrap();
-                let m = RingModel::new(&c, 5);
-                let path = ToolPath::new(&c);
-                for id in 0..12i64 {
-                    let d = m.drawn(&path.nominal((id % 3, id)), false);
-                    let (lo, hi) = m.support_radii(&d).unwrap();
-                    let mut k = m.span_ring(&d);
-                    let mut state = (id as u64 + 1) * 0x9E37_79B9_7F4A_7C15;
-                    for row in 0..40 {
-                        let y = d.centre.1 - hi + 2.0 * hi * (row as f64 + 0.5) / 40.0;
-                        k.set_row(y);
-                        // 37 + row % 4 points over the right-hand run of the annulus on
-                        // this row, a little beyond it at both ends.
-                        let dy2 = (y - d.centre.1).powi(2);
-                        let (a, b) = ((lo * lo - dy2).max(0.0).sqrt(), (hi * hi - dy2).sqrt());
-                        let n = 37 + row % 4;
-                        let xs: Vec<f64> = (0..n)
-                            .map(|i| d.centre.0 + a - 0.02 + (b - a + 0.04) * i as f64 / n as f64)
-                            .collect();
-                        let f0: Vec<f64> = (0..n)
-                            .map(|i| {
-                                state ^= state << 13;
-                                state ^= state >> 7;
-                                state ^= state << 17;
-                                match i % 5 {
-                                    0 => 0.0,
-                                    1 => -0.0,
-                                    _ => (state >> 11) as f64 / (1u64 << 53) as f64 * 10.0 - 5.0,
+        each_shape_and_interaction(|shape, interaction, m, path| {
+            for id in 0..12i64 {
+                let d = m.drawn(&path.nominal((id % 3, id)), false);
+                let (lo, hi) = m.support_radii(&d).unwrap();
+                let mut k = m.span_ring(&d);
+                let mut state = (id as u64 + 1) * 0x9E37_79B9_7F4A_7C15;
+                for row in 0..40 {
+                    let y = d.centre.1 - hi + 2.0 * hi * (row as f64 + 0.5) / 40.0;
+                    k.set_row(y);
+                    // 37 + row % 4 points over the right-hand run of the annulus on
+                    // this row, a little beyond it at both ends.
+                    let dy2 = (y - d.centre.1).powi(2);
+                    let (a, b) = ((lo * lo - dy2).max(0.0).sqrt(), (hi * hi - dy2).sqrt());
+                    let n = 37 + row % 4;
+                    let xs: Vec<f64> = (0..n)
+                        .map(|i| d.centre.0 + a - 0.02 + (b - a + 0.04) * i as f64 / n as f64)
+                        .collect();
+                    let f0: Vec<f64> = (0..n)
+                        .map(|i| {
+                            state ^= state << 13;
+                            state ^= state >> 7;
+                            state ^= state << 17;
+                            match i % 5 {
+                                0 => 0.0,
+                                1 => -0.0,
+                                _ => (state >> 11) as f64 / (1u64 << 53) as f64 * 10.0 - 5.0,
+                            }
+                        })
+                        .collect();
+                    let mut simd = f0.clone();
+                    k.fold(&xs, &mut simd, lut, &noise_pad);
+                    for i in 0..n {
+                        let scalar = k.point(xs[i], f0[i], lut, &noise_pad);
+                        let want = match d.value(&m, xs[i], y, lut, &noise_q) {
+                            Some(v) => {
+                                covered += 1;
+                                match m.interaction {
+                                    InteractionKind::Min => fold_min(f0[i], v.r),
+                                    InteractionKind::Latest => v.r,
+                                    InteractionKind::Convex => v.a * v.r + (1.0 - v.a) * f0[i],
                                 }
-                            })
-                            .collect();
-                        let mut simd = f0.clone();
-                        k.fold(&xs, &mut simd, lut, &noise_pad);
-                        for i in 0..n {
-                            let scalar = k.point(xs[i], f0[i], lut, &noise_pad);
-                            let want = match d.value(&m, xs[i], y, lut, &noise_q) {
-                                Some(v) => {
-                                    covered += 1;
-                                    match m.interaction {
-                                        InteractionKind::Min => fold_min(f0[i], v.r),
-                                        InteractionKind::Latest => v.r,
-                                        InteractionKind::Convex => v.a * v.r + (1.0 - v.a) * f0[i],
-                                    }
-                                }
-                                None => f0[i],
-                            };
-                            total += 1;
-                            assert_eq!(
-                                (simd[i].to_bits(), scalar.to_bits()),
-                                (want.to_bits(), want.to_bits()),
-                                "{shape} {interaction} ring {id} row {row} point {i}: row fold {}, scalar {scalar}, point {want}",
-                                simd[i]
-                            );
-                        }
+                            }
+                            None => f0[i],
+                        };
+                        total += 1;
+                        assert_eq!(
+                            (simd[i].to_bits(), scalar.to_bits()),
+                            (want.to_bits(), want.to_bits()),
+                            "{shape} {interaction} ring {id} row {row} point {i}: row fold {}, scalar {scalar}, point {want}",
+                            simd[i]
+                        );
                     }
                 }
             }
-        }
+        });
         assert!(
             covered > total / 4,
             "only {covered} of {total} points covered"
@@ -1184,13 +1201,9 @@ mod tests {
     /// ([`SpanRing::covering_nothing`]) covers nothing.
     #[test]
     fn groups_equal_their_rings_in_f64_bits() {
-        use super::super::config::MillingConfig;
-        use super::super::path::ToolPath;
         use super::super::simd::{PointLanes, Scalar};
-        let lut: Vec<f32> = shape_table();
+        let (lut, noise_q, noise_pad) = tables();
         let lut: &[f32; SHAPE_LUT] = lut[..].try_into().unwrap();
-        let noise_q = quantise_noise(&noise_profiles(50.0, 50.0, 4));
-        let noise_pad = pad_noise(&noise_q);
         let (mut covered, mut total) = (0usize, 0usize);
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut u = move || {
@@ -1199,67 +1212,58 @@ mod tests {
             state ^= state << 17;
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
-        for shape in ["indicator", "cosine", "bump"] {
-            for interaction in ["min", "latest", "convex"] {
-                let text = format!(
-                    "[shape]\nkind = \"{shape}\"\n[interaction]\nkind = \"{interaction}\"\n[path]\nkind = \"parallel\"\nangle_deg = 20.0\n"
-                );
-                let c = MillingConfig::from_toml(&text, "test").unwrap();
-                let m = RingModel::new(&c, 5);
-                let path = ToolPath::new(&c);
-                for id in 0..8i64 {
-                    // Four neighbouring rings of two lines; the last lane padding in
-                    // every other group.
-                    let ds = [0, 1, 2, 3].map(|q| m.drawn(&path.nominal((id + q, q % 2)), false));
-                    let ks = ds.map(|d| m.span_ring(&d));
-                    let pad = ks[3].covering_nothing();
-                    let last = if id % 2 == 0 { &pad } else { &ks[3] };
-                    let g = Group::from_rings([&ks[0], &ks[1], &ks[2], last]);
-                    for _ in 0..300 {
-                        // A point on or near the support of one of the rings.
-                        let d = &ds[(u() * 4.0) as usize % 4];
-                        let (lo, hi) = m.support_radii(d).unwrap();
-                        let radius = lo - 0.05 + (hi - lo + 0.1) * u();
-                        let angle = std::f64::consts::TAU * u();
-                        let (x, y) = (
-                            d.centre.0 + radius * angle.cos(),
-                            d.centre.1 + radius * angle.sin(),
+        each_shape_and_interaction(|shape, interaction, m, path| {
+            for id in 0..8i64 {
+                // Four neighbouring rings of two lines; the last lane padding in
+                // every other group.
+                let ds = [0, 1, 2, 3].map(|q| m.drawn(&path.nominal((id + q, q % 2)), false));
+                let ks = ds.map(|d| m.span_ring(&d));
+                let pad = ks[3].covering_nothing();
+                let last = if id % 2 == 0 { &pad } else { &ks[3] };
+                let g = Group::from_rings([&ks[0], &ks[1], &ks[2], last]);
+                for _ in 0..300 {
+                    // A point on or near the support of one of the rings.
+                    let d = &ds[(u() * 4.0) as usize % 4];
+                    let (lo, hi) = m.support_radii(d).unwrap();
+                    let radius = lo - 0.05 + (hi - lo + 0.1) * u();
+                    let angle = std::f64::consts::TAU * u();
+                    let (x, y) = (
+                        d.centre.0 + radius * angle.cos(),
+                        d.centre.1 + radius * angle.sin(),
+                    );
+                    let scalar = Scalar.group_at(&g, m.kind(), (x, y), lut, &noise_pad);
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(avx2) = super::super::simd::Avx2::detect() {
+                        let wide = avx2.group_at(&g, m.kind(), (x, y), lut, &noise_pad);
+                        assert_eq!(
+                            (wide.0, wide.1.map(f64::to_bits), wide.2.map(f64::to_bits)),
+                            (
+                                scalar.0,
+                                scalar.1.map(f64::to_bits),
+                                scalar.2.map(f64::to_bits)
+                            ),
+                            "{shape} {interaction} rings {id}.. at ({x}, {y})"
                         );
-                        let scalar = Scalar.group_at(&g, m.kind(), (x, y), lut, &noise_pad);
-                        #[cfg(target_arch = "x86_64")]
-                        if let Some(avx2) = super::super::simd::Avx2::detect() {
-                            let wide = avx2.group_at(&g, m.kind(), (x, y), lut, &noise_pad);
-                            assert_eq!(
-                                (wide.0, wide.1.map(f64::to_bits), wide.2.map(f64::to_bits)),
-                                (
-                                    scalar.0,
-                                    scalar.1.map(f64::to_bits),
-                                    scalar.2.map(f64::to_bits)
-                                ),
-                                "{shape} {interaction} rings {id}.. at ({x}, {y})"
-                            );
-                        }
-                        for (q, d) in ds.iter().enumerate() {
-                            let want = if q == 3 && id % 2 == 0 {
-                                None
-                            } else {
-                                d.value(&m, x, y, lut, &noise_q)
-                            };
-                            let got =
-                                (scalar.0 >> q & 1 != 0).then_some((scalar.1[q], scalar.2[q]));
-                            total += 1;
-                            covered += want.is_some() as usize;
-                            assert_eq!(
-                                got.map(|(v, a)| (v.to_bits(), a.to_bits())),
-                                want.map(|w| (w.r.to_bits(), w.a.to_bits())),
-                                "{shape} {interaction} ring {} lane {q} at ({x}, {y})",
-                                id + q as i64
-                            );
-                        }
+                    }
+                    for (q, d) in ds.iter().enumerate() {
+                        let want = if q == 3 && id % 2 == 0 {
+                            None
+                        } else {
+                            d.value(&m, x, y, lut, &noise_q)
+                        };
+                        let got = (scalar.0 >> q & 1 != 0).then_some((scalar.1[q], scalar.2[q]));
+                        total += 1;
+                        covered += want.is_some() as usize;
+                        assert_eq!(
+                            got.map(|(v, a)| (v.to_bits(), a.to_bits())),
+                            want.map(|w| (w.r.to_bits(), w.a.to_bits())),
+                            "{shape} {interaction} ring {} lane {q} at ({x}, {y})",
+                            id + q as i64
+                        );
                     }
                 }
             }
-        }
+        });
         assert!(
             covered > total / 8,
             "only {covered} of {total} lane values covered"
