@@ -1008,13 +1008,7 @@ mod tests {
     /// later ones), on a parallel and a spiral path, for every interaction.
     #[test]
     fn the_scalar_point_path_equals_the_uncached_one() {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut u = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut u = ring::tests::uniform(0x2545_F491_4F6C_DD1D);
         let (mut points, mut nonzero) = (0usize, 0usize);
         for path in [
             "parallel\"\nangle_deg = 30.0",

@@ -1077,8 +1077,19 @@ pub fn quantise_noise(profiles: &[f32]) -> Vec<i16> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
+
+    /// Uniform draws in [0, 1) from a xorshift64 stream started at `seed` (not 0).
+    pub(in super::super) fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
 
     /// The shape table and the quantised noise profiles, plain and padded, that the
     /// bit-for-bit tests read.
@@ -1205,13 +1216,7 @@ mod tests {
         let (lut, noise_q, noise_pad) = tables();
         let lut: &[f32; SHAPE_LUT] = lut[..].try_into().unwrap();
         let (mut covered, mut total) = (0usize, 0usize);
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut u = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut u = uniform(0x9E37_79B9_7F4A_7C15);
         each_shape_and_interaction(|shape, interaction, m, path| {
             for id in 0..8i64 {
                 // Four neighbouring rings of two lines; the last lane padding in
