@@ -108,8 +108,8 @@ const RING_CACHE_SLOTS: usize = 1024;
 /// goes to slot (i mod 64, j mod 64), so the cells of any field up to 64 cells wide
 /// (13 mm at d = 4 mm) have slots of their own. A cell holds its rings' constants
 /// ([`ring::Group`], 0.9 KiB per four rings; about 8 rings at d = 4 mm), so a thread
-/// that fills every slot keeps about 10 MiB; one that queries a smaller field, only
-/// that field's cells.
+/// that fills every slot keeps about 10 MiB (at most 30 MiB, [`MAX_CELL_RINGS`]); one
+/// that queries a smaller field, only that field's cells.
 const CELL_CACHE_SIDE: usize = 64;
 
 /// One cached ring: the surface it belongs to (uid 0: an empty slot), its id, its
@@ -122,13 +122,20 @@ struct CachedRing {
     key: Key,
 }
 
+/// Most rings a cell keeps ([`MAX_CELL_RINGS`] / 4 groups of 0.9 KiB): a model whose
+/// cells meet more (a step δ far below the ring width) answers through the ring cache
+/// alone, so a thread's cells never hold more than 4096 × 7.3 KiB ≈ 30 MiB.
+const MAX_CELL_RINGS: usize = 32;
+
 /// One cached cell: the surface (uid 0: an empty slot) and the cell it is about, and
 /// the rings that can cover a point of the cell, in milling order, four to a
-/// [`ring::Group`] (empty until the cell is asked for a second time).
+/// [`ring::Group`] (empty until the cell is asked for a second time, and for good if
+/// the cell meets more than [`MAX_CELL_RINGS`], which `too_many` then says).
 struct CachedCell {
     uid: u64,
     cell: (i64, i64),
     groups: Vec<ring::Group>,
+    too_many: bool,
 }
 
 /// A thread's caches for [`MillingSurface::eval_mm_cached`].
@@ -385,6 +392,7 @@ impl MillingSurface {
                     uid: 0,
                     cell: (0, 0),
                     groups: Vec::new(),
+                    too_many: false,
                 })
                 .collect();
         }
@@ -459,10 +467,11 @@ impl MillingSurface {
         } = cache;
         let c = &mut cells[slot];
         let lut = self.lut_array();
-        if c.uid == self.uid && c.cell == cell {
-            if c.groups.is_empty() {
-                self.build_cell(rings, scratch, cell, side, &mut c.groups);
-            }
+        let known = c.uid == self.uid && c.cell == cell;
+        if known && c.groups.is_empty() && !c.too_many {
+            c.too_many = !self.build_cell(rings, scratch, cell, side, &mut c.groups);
+        }
+        if known && !c.too_many {
             let kind = self.rings.kind();
             let mut f = 0.0;
             for g in &c.groups {
@@ -473,16 +482,20 @@ impl MillingSurface {
             }
             return f;
         }
-        // First time in this cell: remember it, and go through the ring cache.
-        c.uid = self.uid;
-        c.cell = cell;
-        c.groups.clear();
+        if !known {
+            // First time in this cell: remember it, and go through the ring cache.
+            c.uid = self.uid;
+            c.cell = cell;
+            c.groups.clear();
+            c.too_many = false;
+        }
         self.through_rings(lanes, rings, (x, y), lut)
     }
 
     /// The cell `cell` (side `side` mm): the rings that can cover any of its points, in
     /// milling order, four to a group (the last padded with rings that cover nothing).
-    /// At least one group, so that a built cell is never empty.
+    /// At least one group, so that a built cell is never empty; or false, with no
+    /// group, if the cell meets more than [`MAX_CELL_RINGS`] rings.
     fn build_cell(
         &self,
         rings: &mut [CachedRing],
@@ -490,7 +503,7 @@ impl MillingSurface {
         cell: (i64, i64),
         side: f64,
         groups: &mut Vec<ring::Group>,
-    ) {
+    ) -> bool {
         let (x0, y0) = (cell.0 as f64 * side, cell.1 as f64 * side);
         // The cell a hair larger than its side: a point's floor(x / side) may round
         // across the border.
@@ -510,8 +523,11 @@ impl MillingSurface {
                 scratch.push((e.key, e.ring));
             }
         });
-        scratch.sort_unstable_by_key(|e| e.0);
         groups.clear();
+        if scratch.len() > MAX_CELL_RINGS {
+            return false;
+        }
+        scratch.sort_unstable_by_key(|e| e.0);
         let none = match scratch.first() {
             Some(e) => e.1,
             None => self.cache_entry((0, 0), 0).ring,
@@ -524,6 +540,7 @@ impl MillingSurface {
         if groups.is_empty() {
             groups.push(ring::Group::from_rings([&none; 4]));
         }
+        true
     }
 
     /// The point (x, y) (mm) through the ring cache: its candidate rings four at a
@@ -1045,6 +1062,35 @@ mod tests {
         assert!(
             nonzero > points / 2,
             "only {nonzero} of {points} points touched"
+        );
+    }
+
+    /// A step far below the ring width (δ = 0.02 mm) puts more than [`MAX_CELL_RINGS`]
+    /// rings on every cell: no cell is built, and every point, asked again and again,
+    /// still gives the uncached bits (through the ring cache), on both point paths.
+    #[test]
+    fn cells_meeting_too_many_rings_stay_unbuilt() {
+        let mut u = ring::tests::uniform(0x1234_5678_9ABC_DEF1);
+        let text =
+            "[interaction]\nkind = \"convex\"\n[path]\nkind = \"parallel\"\nstep_mm = 0.02\n";
+        let c = MillingConfig::from_toml(text, "test").unwrap();
+        let s = MillingSurface::new(&c, 6.1, 3).unwrap();
+        let mut cache = PointCache::default();
+        s.ready(&mut cache);
+        for _ in 0..100 {
+            let (x, y) = (u() - 0.5, u() - 0.5);
+            let want = s.eval_mm(x, y);
+            for _ in 0..3 {
+                let got = s.cached(simd::Scalar, &mut cache, x, y);
+                assert_eq!(got.to_bits(), want.to_bits(), "at ({x}, {y}) mm");
+                let got = s.eval_mm_cached(x, y);
+                assert_eq!(got.to_bits(), want.to_bits(), "at ({x}, {y}) mm");
+            }
+        }
+        let seen = cache.cells.iter().filter(|c| c.uid == s.uid);
+        assert!(
+            seen.clone().all(|c| c.groups.is_empty()) && seen.filter(|c| c.too_many).count() > 10,
+            "cells with too many rings were built, or none was found too full"
         );
     }
 }
