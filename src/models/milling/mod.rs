@@ -94,6 +94,8 @@ pub struct MillingSurface {
     noise_pad: ring::Padded,
     mm_per_px: f64,
     adaptation: Option<Adaptation>,
+    /// The side of the point cache's cells (mm; `cell_mm`).
+    cell_side: f64,
     /// Identity of this surface's rings in the per-thread ring cache (clones share it:
     /// their rings are the same).
     uid: u64,
@@ -198,9 +200,11 @@ impl MillingSurface {
             ));
         }
         let noise_q = ring::quantise_noise(&noise);
+        let rings = RingModel::new(config, seed);
         Ok(MillingSurface {
             config: config.clone(),
-            rings: RingModel::new(config, seed),
+            cell_side: Self::cell_mm(&rings),
+            rings,
             path: ToolPath::new(config),
             lut,
             noise_pad: ring::pad_noise(&noise_q),
@@ -402,8 +406,8 @@ impl MillingSurface {
     /// which a ring can have support, so that a cell meets few rings' supports
     /// (smaller cells meet fewer, but more of them must be built and kept: at d = 4 mm,
     /// 0.2 mm cells and 0.1 mm ones differ by a tenth of a sample's time).
-    fn cell_mm(&self) -> f64 {
-        let (in2, out2) = self.rings.support2;
+    fn cell_mm(rings: &RingModel) -> f64 {
+        let (in2, out2) = rings.support2;
         ((out2.sqrt() - in2.sqrt()) * 0.5).max(1e-6)
     }
 
@@ -456,7 +460,7 @@ impl MillingSurface {
     /// a time by `lanes`.
     #[inline(always)]
     fn cached(&self, lanes: impl simd::PointLanes, cache: &mut PointCache, x: f64, y: f64) -> f64 {
-        let side = self.cell_mm();
+        let side = self.cell_side;
         let cell = ((x / side).floor() as i64, (y / side).floor() as i64);
         let mask = CELL_CACHE_SIDE as i64 - 1;
         let slot = ((cell.0 & mask) + (cell.1 & mask) * CELL_CACHE_SIDE as i64) as usize;
@@ -773,12 +777,12 @@ impl MillingSurface {
         let far = region.x_at(c0).abs().max(region.x_at(c1 - 1).abs());
         let slack = 1e-6 + 1e-12 * far / region.step;
         for d in list {
-            let Some((lo, hi)) = m.support_radii(d) else {
+            let mut k = m.span_ring(d);
+            let Some((lo, hi)) = m.support_of(&k) else {
                 continue;
             };
             let (in2, out2) = (lo * lo * (1.0 - 1e-9), hi * hi * (1.0 + 1e-9));
             let (cx, cy) = d.centre;
-            let mut k = m.span_ring(d);
             for r in r0..r1 {
                 let y = region.y_at(r) * s;
                 let dy2 = (y - cy) * (y - cy);

@@ -567,27 +567,17 @@ impl RingModel {
     /// none: the union of its parts as `part_of` bounds them (indentation [r − w⁻, r],
     /// inner [r − w⁻ − w⁺ⁱ, r − w⁻), outer (r, r + w⁺ᵒ]), within the model's support.
     pub fn support_radii(&self, d: &Drawn) -> Option<(f64, f64)> {
-        let r = self.r;
-        let bump = self.shape == ShapeKind::Bump;
-        let edge = r - d.w_minus;
-        let (ind, inner, outer) = (
-            d.w_minus > 0.0,
-            bump && d.w_inner > 0.0,
-            bump && d.w_outer > 0.0,
-        );
-        let lo = if inner {
-            edge - d.w_inner
-        } else if ind {
-            edge
-        } else {
-            r
-        };
-        let hi = if outer { r + d.w_outer } else { r };
-        let (lo, hi) = (
+        self.support_of(&self.span_ring(d))
+    }
+
+    /// [`Self::support_radii`] of a ring already worked into its constants.
+    #[inline(always)]
+    pub(crate) fn support_of(&self, k: &SpanRing) -> Option<(f64, f64)> {
+        let (lo, hi) = k.support()?;
+        Some((
             lo.max(self.support2.0.sqrt()),
             hi.min(self.support2.1.sqrt()),
-        );
-        (ind || inner || outer).then_some((lo.max(0.0), hi))
+        ))
     }
 
     /// What the ring arithmetic branches on: the same for every ring of the model.
