@@ -108,7 +108,7 @@ impl Error {
         }
     }
 
-    /// A parameter error.
+    /// A parameter error. Give numbers that may be huge through [`short`].
     pub fn param(
         name: impl Into<String>,
         value: impl std::fmt::Display,
@@ -127,5 +127,31 @@ impl Error {
             what: what.into(),
             message: message.into(),
         }
+    }
+}
+
+/// A number for an error message: as typed for everyday magnitudes, in exponent form
+/// beyond 10¹⁵ (where `{}` would print every digit of 1e300).
+pub fn short(v: f64) -> String {
+    if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short;
+
+    #[test]
+    fn huge_and_tiny_numbers_are_written_short() {
+        assert_eq!(short(1e300), "1e300");
+        assert_eq!(short(-9e18), "-9e18");
+        assert_eq!(short(2.5e-9), "2.5e-9");
+        assert_eq!(short(12.5), "12.5");
+        assert_eq!(short(0.0), "0");
+        assert_eq!(short(f64::NAN), "NaN");
+        assert_eq!(short(f64::INFINITY), "inf");
     }
 }

@@ -259,7 +259,7 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
         /// Patch side for stitching, in pixels; default: the smaller side of the
-        /// down-sampled measurement, at most 512.
+        /// down-sampled measurement, at most 1024.
         #[arg(long)]
         patch: Option<usize>,
         /// Overlap of neighbouring patches in pixels; default: half the patch.
@@ -558,6 +558,9 @@ fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
     })
 }
 
+/// Smallest side `surftile stats` accepts, in pixels: the PSD error's smallest window.
+const MIN_STATS_SIDE: usize = 8;
+
 /// A coordinate from the command line, inside the surface's range.
 fn coordinate(name: &str, v: f64) -> Result<f64> {
     if v.abs() < surftile::stream::MAX_COORDINATE {
@@ -565,7 +568,7 @@ fn coordinate(name: &str, v: f64) -> Result<f64> {
     } else {
         Err(Error::param(
             name,
-            v,
+            surftile::error::short(v),
             "a finite coordinate within ±2^52 pixels",
         ))
     }
@@ -671,7 +674,13 @@ fn lattice_command(
     let best = translation::best_pair(&map);
     let t = match best {
         Some(t) if t.mean_gamma >= translation::MIN_MEAN_GAMMA => t,
-        other => return Err(translation::no_lattice(&what, other)),
+        other => {
+            return Err(translation::no_lattice(
+                &what,
+                other,
+                "to synthesise it anyway, bake it with --method rsgf and --stochastic, or with --lattice \"ux,uy;vx,vy\"",
+            ));
+        }
     };
     if let Some(out) = plot {
         write_lattice_plot(out, &map, t)?;
@@ -1270,6 +1279,31 @@ fn run(command: Command) -> Result<()> {
                 return Err(Error::param("cell", 0, "a cell size of at least 1 pixel"));
             }
             let (ra, rb) = (load(&a)?, load(&b)?);
+            for (path, r) in [(&a, &ra), (&b, &rb)] {
+                if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
+                    return Err(Error::TooSmall {
+                        what: path.display().to_string(),
+                        message: format!(
+                            "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE} (the PSD error's smallest window)",
+                            r.width, r.height
+                        ),
+                    });
+                }
+            }
+            if ra.data.iter().all(|&v| v == ra.data[0]) {
+                return Err(Error::Analysis {
+                    what: a.display().to_string(),
+                    message: format!(
+                        "A is flat (every height {}{}): W1 and the PSD error measure B against A's spread and spectrum, so A must vary",
+                        ra.data[0],
+                        if level == Leveling::None {
+                            ""
+                        } else {
+                            " after levelling"
+                        }
+                    ),
+                });
+            }
             let figures = compare(&ra, &rb, cell);
             println!(
                 "{}",

@@ -36,6 +36,9 @@ pub struct HeightStats {
     pub str: f64,
     /// Repetition score: highest normalised ACF at lags beyond the longest decay length.
     pub repetition: f64,
+    /// Stationarity check, [`windowed_variance_ratio`]: 1 when the height variance is
+    /// spread evenly; far from 1 when it sits in the middle or at the borders.
+    pub windowed_variance_ratio: f64,
 }
 
 /// Everything `surftile stats A B` reports.
@@ -100,7 +103,39 @@ pub fn height_stats(r: &Raster) -> HeightStats {
         sal,
         str: if longest > 0.0 { sal / longest } else { 0.0 },
         repetition,
+        windowed_variance_ratio: safe(windowed_variance_ratio(r)),
     }
+}
+
+/// The variance a map's Hann-windowed spectrum implies (Welch's estimate: the mean square
+/// of the windowed deviations over the window's own mean square, 9/64 for the separable
+/// Hann window) divided by its plain variance. A stationary map gives about 1, whatever
+/// the window weights; a map whose variance sits in the middle (a crater, a dome) gives
+/// more, one whose variance sits at the borders (a bowl, a part's edge) less.
+///
+/// It bounds what a stationary synthesis can do: the PSD error compares Hann-windowed
+/// spectra, W1 plain height distributions, so an output with the map's variance is off
+/// by about |log10 r| in PSD level, and one with its windowed spectrum off by the factor
+/// √r in height spread. NaN for a flat map.
+pub fn windowed_variance_ratio(r: &Raster) -> f64 {
+    let (w, h) = (r.width, r.height);
+    let (mean, sd) = moments(&r.data);
+    let hann = |n: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * (i as f64 + 0.5) / n as f64).cos())
+            .collect()
+    };
+    let (wx, wy) = (hann(w), hann(h));
+    let mean_sq = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>() / v.len().max(1) as f64;
+    let norm = mean_sq(&wx) * mean_sq(&wy);
+    let mut acc = 0.0;
+    for (y, wy) in wy.iter().enumerate() {
+        for (x, wx) in wx.iter().enumerate() {
+            acc += ((r.get(x, y, 0) as f64 - mean) * wx * wy).powi(2);
+        }
+    }
+    let welch = acc / (w * h).max(1) as f64 / norm;
+    welch / (sd * sd)
 }
 
 /// Normalised autocorrelation of a height map, from a zero-padded FFT.
@@ -527,6 +562,48 @@ mod tests {
         );
         assert!(s.str < 0.2, "Str {}", s.str);
         assert!(s.repetition > 0.95, "repetition {}", s.repetition);
+    }
+
+    /// Stationary noise: ratio 1 within 10%. The same noise only inside a central disc
+    /// of radius a quarter of the side (a crater on a flat map), or only outside it: the
+    /// expected ratio is the window's mean square over that region divided by its mean
+    /// square over the map, 3.98 inside and 0.27 outside (computed from the window
+    /// alone); the thresholds 3 and 0.5 leave room for the noise.
+    #[test]
+    fn windowed_variance_ratio_tells_stationary_from_centred_or_bordered() {
+        let mut state = 11u64;
+        let mut noise = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f64 / (1u64 << 24) as f64 - 0.5
+        };
+        let n = 128;
+        let field: Vec<f64> = (0..n * n).map(|_| noise()).collect();
+        let inside = |x: usize, y: usize| {
+            let (dx, dy) = (x as f64 - 63.5, y as f64 - 63.5);
+            dx.hypot(dy) < 32.0
+        };
+        let all = raster(n, n, |x, y| field[y * n + x]);
+        let centre = raster(
+            n,
+            n,
+            |x, y| if inside(x, y) { field[y * n + x] } else { 0.0 },
+        );
+        let border = raster(
+            n,
+            n,
+            |x, y| if inside(x, y) { 0.0 } else { field[y * n + x] },
+        );
+        let (a, c, b) = (
+            windowed_variance_ratio(&all),
+            windowed_variance_ratio(&centre),
+            windowed_variance_ratio(&border),
+        );
+        assert!((a - 1.0).abs() < 0.1, "stationary {a}");
+        assert!(c > 3.0, "centred {c}");
+        assert!(b < 0.5, "bordered {b}");
+        assert!(windowed_variance_ratio(&raster(16, 16, |_, _| 2.0)).is_nan());
     }
 
     #[test]

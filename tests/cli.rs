@@ -278,6 +278,25 @@ fn bake_info_render_sample_and_stats_work_together() {
         assert!(stats[key].as_f64().is_some(), "{key} missing in {stats}");
     }
     assert!(stats["a"]["sal"].as_f64().unwrap() > 0.0);
+
+    // Inputs the figures cannot be measured on: one clear line each, no JSON.
+    let raster = |w: usize, h: usize, f: fn(usize) -> f32| {
+        surftile::Raster::from_vec(w, h, 1, (0..w * h).map(f).collect()).unwrap()
+    };
+    let write = |name: &str, r: &surftile::Raster| {
+        surftile::io::write_heights(&dir.path().join(name), r, None).unwrap()
+    };
+    write("tiny.npy", &raster(4, 4, |i| i as f32));
+    write("flat.npy", &raster(32, 32, |_| 1.5));
+    for (a, b, message) in [
+        ("tiny.npy", "r.npy", "at least 8×8"),
+        ("r.npy", "tiny.npy", "at least 8×8"),
+        ("flat.npy", "r.npy", "A is flat"),
+    ] {
+        let r = surftile(dir.path(), &["stats", a, b]);
+        assert_clean_failure(dir.path(), &r, message, "none");
+        assert!(r.stdout.is_empty(), "{a} {b}: {}", r.stdout);
+    }
 }
 
 #[test]
@@ -525,7 +544,13 @@ fn lattice_estimation_from_the_command_line() {
     let noise = surftile::Raster::from_vec(96, 96, 1, noise).unwrap();
     surftile::io::write_heights(&dir.path().join("noise.npy"), &noise, None).unwrap();
     let r = surftile(dir.path(), &["lattice", "noise.npy", "--plot", "none.png"]);
-    assert_clean_failure(dir.path(), &r, "--stochastic", "none.png");
+    // `lattice` has no --stochastic of its own: the advice names the bake that does.
+    assert_clean_failure(
+        dir.path(),
+        &r,
+        "bake it with --method rsgf and --stochastic",
+        "none.png",
+    );
     assert!(r.stderr.contains("--lattice"), "{}", r.stderr);
 }
 

@@ -4,7 +4,7 @@
 //! ([`crate::stream::RsgfSurface`]).
 
 use crate::analysis::ncc::autocorrelation;
-use crate::analysis::translation::{MIN_MEAN_GAMMA, best_pair, no_lattice};
+use crate::analysis::translation::{BAKE_WITHOUT_LATTICE, MIN_MEAN_GAMMA, best_pair, no_lattice};
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::Result;
 use crate::raster::Raster;
@@ -86,7 +86,7 @@ pub(crate) fn bake(
                 ));
                 (t.v1, t.v2)
             }
-            other => return Err(no_lattice(source, other)),
+            other => return Err(no_lattice(source, other, BAKE_WITHOUT_LATTICE)),
         }
     };
     let params = options.params(v1, v2);

@@ -186,13 +186,16 @@ pub fn best_pair(map: &NccMap) -> Option<Translation> {
     best
 }
 
+/// What `surftile bake --method rsgf` can do for an exemplar without a lattice.
+pub const BAKE_WITHOUT_LATTICE: &str = "for a stochastic texture pass --stochastic, or give the vectors with --lattice \"ux,uy;vx,vy\"";
+
 /// The error for an exemplar `what` without a detectable lattice: the figure that
-/// decided it, and what to do instead.
-pub fn no_lattice(what: &str, best: Option<Translation>) -> crate::error::Error {
+/// decided it, and `advice`, what to do instead (e.g. [`BAKE_WITHOUT_LATTICE`]).
+pub fn no_lattice(what: &str, best: Option<Translation>, advice: &str) -> crate::error::Error {
     crate::error::Error::Analysis {
         what: what.to_string(),
         message: format!(
-            "no lattice detected (the best pair's mean autocorrelation at its multiples is {:.3}, under {MIN_MEAN_GAMMA}): for a stochastic texture pass --stochastic, or give the vectors with --lattice \"ux,uy;vx,vy\"",
+            "no lattice detected (the best pair's mean autocorrelation at its multiples is {:.3}, under {MIN_MEAN_GAMMA}): {advice}",
             best.map_or(0.0, |t| t.mean_gamma),
         ),
     }

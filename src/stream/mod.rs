@@ -21,7 +21,7 @@ pub use rsgf::{Metric, RsgfModel, RsgfParams, RsgfSurface};
 pub use toroidal::ToroidalSurface;
 
 use crate::bank::{Bank, Rule};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, short};
 
 /// The surface a bank describes, by its placement rule, placed with `seed`.
 pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
@@ -96,7 +96,13 @@ impl Region {
         if far(self.x) || far(self.y) || far(x1) || far(y1) {
             return Err(Error::param(
                 "region",
-                format!("from ({}, {}) to ({x1}, {y1})", self.x, self.y),
+                format!(
+                    "from ({}, {}) to ({}, {})",
+                    short(self.x),
+                    short(self.y),
+                    short(x1),
+                    short(y1)
+                ),
                 "finite coordinates within ±2^52 pixels",
             ));
         }
