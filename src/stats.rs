@@ -571,15 +571,10 @@ mod tests {
     /// alone); the thresholds 3 and 0.5 leave room for the noise.
     #[test]
     fn windowed_variance_ratio_tells_stationary_from_centred_or_bordered() {
-        let mut state = 11u64;
-        let mut noise = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f64 / (1u64 << 24) as f64 - 0.5
-        };
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
         let n = 128;
-        let field: Vec<f64> = (0..n * n).map(|_| noise()).collect();
+        let field: Vec<f64> = (0..n * n).map(|_| rng.random::<f64>() - 0.5).collect();
         let inside = |x: usize, y: usize| {
             let (dx, dy) = (x as f64 - 63.5, y as f64 - 63.5);
             dx.hypot(dy) < 32.0

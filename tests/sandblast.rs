@@ -1,5 +1,6 @@
 //! Acceptance (issue 7): seed 000's sandblast pipeline and the Wang (quilt) banks.
 
+use rand::{RngExt, SeedableRng};
 use surftile::Raster;
 use surftile::analysis::level::level_plane;
 use surftile::bake::Baker;
@@ -261,15 +262,8 @@ fn the_pipeline_takes_the_route_seed_000_describes() {
 #[test]
 fn a_map_that_is_not_stationary_is_noted_with_the_psd_error_it_costs() {
     let n = 192;
-    let mut state = 5u64;
-    let white: Vec<f64> = (0..n * n)
-        .map(|_| {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f64 / (1u64 << 24) as f64 - 0.5
-        })
-        .collect();
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+    let white: Vec<f64> = (0..n * n).map(|_| rng.random::<f64>() - 0.5).collect();
     // Smooth the noise (a 5×5 box, wrapping) so the map has a spectrum with a shape.
     let smooth = |x: usize, y: usize| -> f64 {
         let mut s = 0.0;
