@@ -131,7 +131,7 @@ impl Error {
 }
 
 /// A number for an error message: as typed for everyday magnitudes, in exponent form
-/// beyond 10¹⁵ (where `{}` would print every digit of 1e300).
+/// from 10¹⁵ up and under 10⁻⁶ (where `{}` would print every digit of 1e300).
 pub fn short(v: f64) -> String {
     if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
         format!("{v:e}")

@@ -492,6 +492,15 @@ enum FilterArg {
 }
 
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, so printing into a closed pipe (`surftile info b.bank | head
+    // -1`) would panic; the default disposition ends the process quietly, as other
+    // command-line tools do.
+    #[cfg(unix)]
+    // SAFETY: first thing in main, before any other thread exists; SIG_DFL is a valid
+    // disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
@@ -1269,6 +1278,9 @@ fn run(command: Command) -> Result<()> {
                         });
                     }
                     fill_missing(&mut r, &what)?;
+                }
+                if r.data.iter().any(|v| v.is_infinite()) {
+                    return Err(Error::decode(what, "the map holds infinite values"));
                 }
                 if level != Leveling::None {
                     level_plane(&mut r);

@@ -288,12 +288,19 @@ fn bake_info_render_sample_and_stats_work_together() {
     };
     write("tiny.npy", &raster(4, 4, |i| i as f32));
     write("flat.npy", &raster(32, 32, |_| 1.5));
+    // The writers refuse infinite heights, so this one is raw f32.
+    let inf: Vec<u8> = (0..32 * 32)
+        .flat_map(|i| if i == 40 { f32::INFINITY } else { i as f32 }.to_le_bytes())
+        .collect();
+    std::fs::write(dir.path().join("inf.f32"), inf).unwrap();
     for (a, b, message) in [
         ("tiny.npy", "r.npy", "at least 8×8"),
         ("r.npy", "tiny.npy", "at least 8×8"),
         ("flat.npy", "r.npy", "A is flat"),
+        ("inf.f32", "r.npy", "infinite values"),
+        ("r.npy", "inf.f32", "infinite values"),
     ] {
-        let r = surftile(dir.path(), &["stats", a, b]);
+        let r = surftile(dir.path(), &["stats", a, b, "--raw-shape", "32x32"]);
         assert_clean_failure(dir.path(), &r, message, "none");
         assert!(r.stdout.is_empty(), "{a} {b}: {}", r.stdout);
     }
@@ -906,4 +913,31 @@ fn imperfection_layers_from_the_command_line() {
             assert!(!p.join(f).exists(), "{extra:?} left {f}");
         }
     }
+}
+
+/// A reader that closes the pipe early (`surftile info BANK | head -1`) ends the process
+/// quietly, by SIGPIPE as other command-line tools do: no panic about a broken pipe.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    bake_good(dir.path());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_surftile"))
+        .args(["info", "good.bank"])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the read end before the child writes anything.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        out.status.success() || out.status.signal() == Some(libc::SIGPIPE),
+        "{:?}: {stderr}",
+        out.status
+    );
 }
