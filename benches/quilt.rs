@@ -63,6 +63,79 @@ fn bench(c: &mut Criterion) {
         b.iter(|| padded.run(black_box(&ex), "di-6", &mut |_| {}).unwrap())
     });
     g.finish();
+
+    // `--match-histogram`'s IAAFT on one 512² RPN patch of di-6, IAAFT_ITERATIONS
+    // alternations, next to the same alternations ranking by a comparison sort of
+    // indices (the implementation before the radix sort of f32 keys).
+    let plane = ex.raster.channel_f64(0);
+    let mut sorted = plane.clone();
+    sorted.sort_unstable_by(f64::total_cmp);
+    let rpn = surftile::analysis::rpn::random_phase_noise(
+        std::slice::from_ref(&plane),
+        512,
+        512,
+        &mut <rand_xoshiro::Xoshiro256PlusPlus as rand::SeedableRng>::seed_from_u64(3),
+    )
+    .remove(0);
+    let n = surftile::sandblast::IAAFT_ITERATIONS;
+    let mut g = c.benchmark_group("iaaft");
+    g.sample_size(10).measurement_time(Duration::from_secs(15));
+    g.bench_function("radix_ranks_512", |b| {
+        b.iter(|| {
+            surftile::analysis::rpn::match_histogram_keeping_modulus(
+                black_box(&rpn),
+                512,
+                512,
+                &sorted,
+                n,
+            )
+        })
+    });
+    g.bench_function("baseline_index_sort_512", |b| {
+        b.iter(|| index_sort_iaaft(black_box(&rpn), 512, 512, &sorted, n))
+    });
+    g.finish();
+}
+
+/// IAAFT as it was before the radix sort: ranks from sorting indices by the values
+/// they point to, moduli through `norm` (hypot).
+fn index_sort_iaaft(
+    plane: &[f64],
+    w: usize,
+    h: usize,
+    sorted: &[f64],
+    iterations: usize,
+) -> Vec<f64> {
+    use surftile::fft::{Fft2, forward_real, inverse_real};
+    let n = plane.len();
+    let targets: Vec<f64> = (0..n)
+        .map(|r| sorted[((r as f64 + 0.5) / n as f64 * sorted.len() as f64) as usize])
+        .collect();
+    let mut plan = Fft2::new(w, h);
+    let modulus: Vec<f64> = forward_real(&mut plan, plane)
+        .iter()
+        .map(|c| c.norm())
+        .collect();
+    let mut order: Vec<usize> = (0..n).collect();
+    let mut x = plane.to_vec();
+    for it in 0..=iterations {
+        order.sort_unstable_by(|&a, &b| x[a].total_cmp(&x[b]));
+        for (r, &i) in order.iter().enumerate() {
+            x[i] = targets[r];
+        }
+        if it == iterations {
+            break;
+        }
+        let mut spec = forward_real(&mut plan, &x);
+        for (s, &m) in spec.iter_mut().zip(&modulus) {
+            let a = s.norm();
+            if a > 0.0 {
+                *s *= m / a;
+            }
+        }
+        x = inverse_real(&mut plan, spec);
+    }
+    x
 }
 
 criterion_group!(benches, bench);
