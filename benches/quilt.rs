@@ -98,7 +98,7 @@ fn bench(c: &mut Criterion) {
 }
 
 /// IAAFT as it was before the radix sort: ranks from sorting indices by the values
-/// they point to, moduli through `norm` (hypot).
+/// they point to (f64 keys), moduli through `norm` (hypot).
 fn index_sort_iaaft(
     plane: &[f64],
     w: usize,
@@ -109,7 +109,7 @@ fn index_sort_iaaft(
     use surftile::fft::{Fft2, forward_real, inverse_real};
     let n = plane.len();
     let targets: Vec<f64> = (0..n)
-        .map(|r| sorted[((r as f64 + 0.5) / n as f64 * sorted.len() as f64) as usize])
+        .map(|r| surftile::analysis::gauss::quantile(sorted, (r as f64 + 0.5) / n as f64))
         .collect();
     let mut plan = Fft2::new(w, h);
     let modulus: Vec<f64> = forward_real(&mut plan, plane)
@@ -129,9 +129,11 @@ fn index_sort_iaaft(
         let mut spec = forward_real(&mut plan, &x);
         for (s, &m) in spec.iter_mut().zip(&modulus) {
             let a = s.norm();
-            if a > 0.0 {
-                *s *= m / a;
-            }
+            *s = if a > 0.0 {
+                *s * (m / a)
+            } else {
+                rustfft::num_complex::Complex64::new(m, 0.0)
+            };
         }
         x = inverse_real(&mut plan, spec);
     }

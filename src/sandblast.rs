@@ -344,6 +344,7 @@ impl Sandblast {
                 |x, y| crop_of(x, y, p, p),
                 |planes| finish(planes, p, p),
                 (ew, eh),
+                progress,
             )?;
             let mut patches: Vec<Option<Vec<f32>>> = patches.into_iter().map(Some).collect();
             let raster = stitch(w, h, c, params, |i, j, _| {
@@ -454,6 +455,7 @@ pub fn pad(plane: &[f64], iw: usize, ih: usize, w: usize, h: usize) -> Vec<f64> 
 /// parallel. Patch (i, j) draws its crop and phases from its own generator, seeded by
 /// the hash of (seed, i, j), so the result does not depend on the thread count; crops
 /// lie inside the `ew × eh` exemplar, and `finish` gets each patch's planes after RPN.
+/// `progress` gets a line at each quarter of the patches done.
 fn rpn_patches(
     (nx, ny): (usize, usize),
     p: usize,
@@ -461,6 +463,7 @@ fn rpn_patches(
     crop: impl Fn(usize, usize) -> Vec<Vec<f64>> + Sync,
     finish: impl Fn(Vec<Vec<f64>>) -> Vec<Vec<f64>> + Sync,
     (ew, eh): (usize, usize),
+    progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<Vec<f32>>> {
     let n = nx * ny;
     let threads = crate::stream::default_threads().clamp(1, n);
@@ -481,9 +484,12 @@ fn rpn_patches(
     };
     let mut out: Vec<Option<Result<Vec<f32>>>> = (0..n).map(|_| None).collect();
     let slots = std::sync::Mutex::new(&mut out);
+    let (made, done) = crossbeam::channel::unbounded::<()>();
     crossbeam::scope(|s| {
+        let (make, next, slots) = (&make, &next, &slots);
         for _ in 0..threads {
-            s.spawn(|_| {
+            let made = made.clone();
+            s.spawn(move |_| {
                 loop {
                     let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     if k >= n {
@@ -493,8 +499,23 @@ fn rpn_patches(
                     if let Ok(mut slots) = slots.lock() {
                         slots[k] = Some(patch);
                     }
+                    let _ = made.send(());
                 }
             });
+        }
+        // This thread reports; the channel closes when the last worker ends, panicked
+        // or not.
+        drop(made);
+        let mut quarter = 0;
+        for (k, ()) in done.iter().enumerate() {
+            if (k + 1) * 4 / n > quarter {
+                quarter = (k + 1) * 4 / n;
+                progress(&format!(
+                    "RPN patches: {}/{n} ({}%)",
+                    k + 1,
+                    (k + 1) * 100 / n
+                ));
+            }
         }
     })
     .map_err(|_| Error::Limits("an RPN patch worker stopped".into()))?;

@@ -258,7 +258,8 @@ fn the_pipeline_takes_the_route_seed_000_describes() {
 /// figure is what the output shows: a 192² map of smooth noise only inside a central
 /// disc (a crater on a flat part) has a windowed-variance ratio near 4 (above the 0.15
 /// log10 bar), and its stitched 512² output's PSD error is within 25% of the predicted
-/// |log10 r|. The stationary di-6 gets no note.
+/// |log10 r|, and the patches made are reported at each quarter. The stationary di-6
+/// (512², cropped to 512²) gets no note.
 #[test]
 fn a_map_that_is_not_stationary_is_noted_with_the_psd_error_it_costs() {
     let n = 192;
@@ -288,17 +289,30 @@ fn a_map_that_is_not_stationary_is_noted_with_the_psd_error_it_costs() {
     )
     .unwrap();
     let run = |ex: Raster, name: &str| {
-        let mut notes = Vec::new();
+        let mut lines = Vec::new();
         let out = Sandblast::builder(512, 512)
             .seed(1)
             .build()
             .unwrap()
-            .run(&image(ex), name, &mut |l| notes.push(l.to_string()))
+            .run(&image(ex), name, &mut |l| lines.push(l.to_string()))
             .unwrap();
-        let note = notes.into_iter().find(|l| l.starts_with("note:"));
+        // Progress on stitched patches: a line per quarter, the last one at 100%.
+        let patches: Vec<&String> = lines
+            .iter()
+            .filter(|l| l.starts_with("RPN patches:"))
+            .collect();
+        if matches!(out.how, Route::Stitched { .. }) {
+            assert!((1..=4).contains(&patches.len()), "{lines:?}");
+            assert!(patches.last().unwrap().ends_with("(100%)"), "{lines:?}");
+        } else {
+            assert!(patches.is_empty(), "{lines:?}");
+        }
+        let note = lines.into_iter().find(|l| l.starts_with("note:"));
         (out, note)
     };
-    let (out, note) = run(crater, "crater");
+    // Named "disc", so the note's "crater" comes from its explanation, not the name.
+    let (out, note) = run(crater, "disc");
+    assert!(matches!(out.how, Route::Stitched { .. }), "{:?}", out.how);
     let note = note.expect("no note for the crater map");
     let r = surftile::stats::windowed_variance_ratio(&out.exemplar);
     let predicted = r.log10().abs();
@@ -306,7 +320,7 @@ fn a_map_that_is_not_stationary_is_noted_with_the_psd_error_it_costs() {
     level_plane(&mut levelled);
     let measured = psd_error(&out.exemplar, &levelled);
     println!(
-        "crater: ratio {r:.2}, predicted PSD error {predicted:.3}, measured {measured:.3}; {note}"
+        "disc: ratio {r:.2}, predicted PSD error {predicted:.3}, measured {measured:.3}; {note}"
     );
     assert!(
         note.contains("crater") && note.contains("in the middle"),

@@ -70,6 +70,9 @@ pub fn random_phase_noise(
 /// On an RPN output (a Gaussian-looking field) this gives back a measured map's skew and
 /// tails — pits of a blasted surface — that RPN alone loses, at little cost to its
 /// spectrum.
+///
+/// # Panics
+/// With more than 2³² samples (32 GiB of f64; the pipeline's outputs stop at 2³⁰).
 pub fn match_histogram_keeping_modulus(
     plane: &[f64],
     width: usize,
@@ -96,7 +99,11 @@ pub fn match_histogram_keeping_modulus(
     // sort of indices by the values they point to spent most of the time waiting on
     // memory. Keys are the heights rounded to f32, the precision they are stored in,
     // which halves the passes; the sort is stable, so heights equal in f32 rank by index.
-    // Samples number at most MAX_OUTPUT_PIXELS = 2³⁰, so u32 indices do.
+    // Indices are u32: see Panics.
+    assert!(
+        u32::try_from(n).is_ok(),
+        "IAAFT of {n} samples: at most 2³² are ranked"
+    );
     let mut keyed: Vec<(u32, u32)> = Vec::with_capacity(n);
     let mut x = plane.to_vec();
     for it in 0..=iterations {
