@@ -88,6 +88,7 @@ fn bench(c: &mut Criterion) {
                 512,
                 &sorted,
                 n,
+                surftile::analysis::rpn::IaaftEnd::Histogram,
             )
         })
     });

@@ -13,6 +13,10 @@ use crate::raster::Raster;
 const ACF_THRESHOLD: f64 = 0.2;
 /// Radial PSD bins are merged from low frequency up until each holds this many samples.
 const PSD_MIN_BIN_SAMPLES: usize = 32;
+/// The foundation issue's fidelity bar on the standardised height-histogram W1.
+pub const W1_BAR: f64 = 0.05;
+/// The foundation issue's fidelity bar on the PSD error.
+pub const PSD_ERROR_BAR: f64 = 0.15;
 
 /// Areal roughness parameters (ISO 25178) of one height map, in its height unit;
 /// lengths in pixels.
@@ -403,11 +407,51 @@ pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
     }
     let (pa, counts) = radial_psd(a, n, 64);
     let (pb, _) = radial_psd(b, n, 64);
+    let sum =
+        |p: &[f64]| -> Vec<f64> { p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect() };
+    log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
+}
+
+/// The PSD error's comparison of two periodic spectra of the same `w × h` grid (FFT
+/// order, no window): power summed over integer radial bins, radii scaled so the
+/// smaller side's frequencies are whole numbers, bins merged as [`psd_error`] does.
+/// What IAAFT uses to judge how far a projection left the modulus it had to keep.
+pub fn spectrum_log_error(a: &[Complex64], b: &[Complex64], w: usize, h: usize) -> f64 {
+    let side = w.min(h) as f64;
+    let bins = w.min(h) / 2 + 1;
+    let (mut sa, mut sb, mut counts) = (vec![0.0; bins], vec![0.0; bins], vec![0usize; bins]);
+    let signed = |k: usize, n: usize| {
+        if k <= n / 2 {
+            k as f64
+        } else {
+            k as f64 - n as f64
+        }
+    };
+    for ky in 0..h {
+        let fy = signed(ky, h) * side / h as f64;
+        for kx in 0..w {
+            let fx = signed(kx, w) * side / w as f64;
+            let rad = (fx * fx + fy * fy).sqrt();
+            if rad >= 1.0 && (rad as usize) < bins {
+                let i = ky * w + kx;
+                sa[rad as usize] += a[i].norm_sqr();
+                sb[rad as usize] += b[i].norm_sqr();
+                counts[rad as usize] += 1;
+            }
+        }
+    }
+    log_rms_over_merged_bins(&sa, &sb, &counts)
+}
+
+/// RMS over radial bins of log10 B − log10 A, from per-bin power sums, low-frequency
+/// bins merged until each holds ≥ 32 samples; bin 0 (the mean) is left out. NaN when
+/// no bin has power on both sides.
+fn log_rms_over_merged_bins(sum_a: &[f64], sum_b: &[f64], counts: &[usize]) -> f64 {
     let (mut sq, mut bins) = (0.0, 0usize);
     let (mut acc_a, mut acc_b, mut acc_n) = (0.0, 0.0, 0usize);
-    for k in 1..pa.len() {
-        acc_a += pa[k] * counts[k] as f64;
-        acc_b += pb[k] * counts[k] as f64;
+    for k in 1..sum_a.len() {
+        acc_a += sum_a[k];
+        acc_b += sum_b[k];
         acc_n += counts[k];
         if acc_n >= PSD_MIN_BIN_SAMPLES {
             if acc_a > 0.0 && acc_b > 0.0 {
