@@ -228,18 +228,9 @@ mod tests {
         let (w, h) = (64, 48);
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
         // A smooth, strongly skewed field: exp of a blurred noise.
-        let noise: Vec<f64> = (0..w * h).map(|_| rng.random::<f64>() - 0.5).collect();
-        let field: Vec<f64> = (0..w * h)
-            .map(|k| {
-                let (x, y) = (k % w, k / w);
-                let mut s = 0.0;
-                for dy in 0..4 {
-                    for dx in 0..4 {
-                        s += noise[((y + dy) % h) * w + (x + dx) % w];
-                    }
-                }
-                (2.0 * s).exp()
-            })
+        let field: Vec<f64> = box_blurred_noise(w, h, 4, &mut rng)
+            .iter()
+            .map(|s| (32.0 * s).exp())
             .collect();
         let mut sorted = field.clone();
         sorted.sort_unstable_by(f64::total_cmp);
@@ -272,6 +263,24 @@ mod tests {
         );
     }
 
+    /// Uniform noise on (−½, ½), averaged over `side × side` boxes (wrapping): a
+    /// smooth field whose spectrum falls faster the larger the box.
+    fn box_blurred_noise(w: usize, h: usize, side: usize, rng: &mut impl Rng) -> Vec<f64> {
+        let noise: Vec<f64> = (0..w * h).map(|_| rng.random::<f64>() - 0.5).collect();
+        (0..w * h)
+            .map(|k| {
+                let (x, y) = (k % w, k / w);
+                let mut s = 0.0;
+                for dy in 0..side {
+                    for dx in 0..side {
+                        s += noise[((y + dy) % h) * w + (x + dx) % w];
+                    }
+                }
+                s / (side * side) as f64
+            })
+            .collect()
+    }
+
     /// `IaaftEnd::Nearer` on two known cases. A smooth field (a 9×9 box blur of noise:
     /// a steep spectrum) asked for a histogram with pits (its lowest 2% pushed 6 sd
     /// down): the rank step's sharp pits swamp the high frequencies, so its spectral
@@ -284,19 +293,7 @@ mod tests {
     fn the_nearer_end_keeps_a_smooth_spectrum_and_a_rough_histogram() {
         let (w, h) = (96, 64);
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9);
-        let noise: Vec<f64> = (0..w * h).map(|_| rng.random::<f64>() - 0.5).collect();
-        let smooth: Vec<f64> = (0..w * h)
-            .map(|k| {
-                let (x, y) = (k % w, k / w);
-                let mut s = 0.0;
-                for dy in 0..9 {
-                    for dx in 0..9 {
-                        s += noise[((y + dy) % h) * w + (x + dx) % w];
-                    }
-                }
-                s / 81.0
-            })
-            .collect();
+        let smooth = box_blurred_noise(w, h, 9, &mut rng);
         let mut plan = Fft2::new(w, h);
         let spectrum = |p: &[f64], plan: &mut Fft2| forward_real(plan, p);
         let sd = |v: &[f64]| {
