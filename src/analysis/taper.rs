@@ -2,7 +2,7 @@
 
 /// Periodic Hann window value for sample i of n (the sample centres, so both ends are
 /// small and equal).
-fn hann(i: usize, n: usize) -> f64 {
+pub(crate) fn hann(i: usize, n: usize) -> f64 {
     let t = (i as f64 + 0.5) / n as f64;
     0.5 - 0.5 * (2.0 * std::f64::consts::PI * t).cos()
 }
