@@ -407,11 +407,12 @@ pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
     log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
 }
 
-/// The PSD error's comparison of two periodic spectra of the same `w × h` grid (FFT
-/// order, no window): power summed over integer radial bins, radii scaled so the
-/// smaller side's frequencies are whole numbers, bins merged as [`psd_error`] does.
-/// What IAAFT uses to judge how far a projection left the modulus it had to keep.
-pub fn spectrum_log_error(a: &[Complex64], b: &[Complex64], w: usize, h: usize) -> f64 {
+/// The PSD error's comparison of a periodic spectrum `b` with a target modulus `a`, both
+/// on the same `w × h` grid (FFT order, no window): power summed over integer radial
+/// bins, radii scaled so the smaller side's frequencies are whole numbers, bins merged
+/// as [`psd_error`] does. What IAAFT uses to judge how far a projection left the
+/// modulus it had to keep.
+pub fn spectrum_log_error(a: &[f64], b: &[Complex64], w: usize, h: usize) -> f64 {
     let side = w.min(h) as f64;
     let bins = w.min(h) / 2 + 1;
     let (mut sa, mut sb, mut counts) = (vec![0.0; bins], vec![0.0; bins], vec![0usize; bins]);
@@ -429,7 +430,7 @@ pub fn spectrum_log_error(a: &[Complex64], b: &[Complex64], w: usize, h: usize) 
             let rad = (fx * fx + fy * fy).sqrt();
             if rad >= 1.0 && (rad as usize) < bins {
                 let i = ky * w + kx;
-                sa[rad as usize] += a[i].norm_sqr();
+                sa[rad as usize] += a[i] * a[i];
                 sb[rad as usize] += b[i].norm_sqr();
                 counts[rad as usize] += 1;
             }
