@@ -39,10 +39,10 @@ struct Cli {
 #[derive(Args)]
 struct Window {
     /// x of the first sample, in surface pixels.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.0)]
     x: f64,
     /// y of the first sample, in surface pixels.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.0)]
     y: f64,
     /// Width in samples.
     #[arg(long, allow_negative_numbers = true)]
@@ -529,15 +529,49 @@ fn main() -> ExitCode {
     }
 }
 
-/// clap's error as one line, with the accepted values when it knows them.
+/// clap's error as one line, with the missing arguments or the accepted values when it
+/// knows them.
 fn one_line(e: &clap::Error) -> String {
     let text = e.render().to_string();
     let first = text.lines().next().unwrap_or("invalid arguments");
     let mut line = first.trim_start_matches("error: ").to_string();
+    if e.kind() == ErrorKind::MissingRequiredArgument
+        && let Some(ContextValue::Strings(missing)) = e.get(ContextKind::InvalidArg)
+    {
+        // clap lists them on the lines below its first.
+        line = format!(
+            "missing {}: {}",
+            if missing.len() == 1 {
+                "argument"
+            } else {
+                "arguments"
+            },
+            missing.join(", ")
+        );
+    }
     if let Some(ContextValue::Strings(values)) = e.get(ContextKind::ValidValue) {
         line.push_str(&format!(" (expected one of: {})", values.join(", ")));
     }
-    line.push_str("; see 'surftile --help'");
+    // The command the error is about, from clap's usage line ("Usage: surftile render
+    // [OPTIONS] …"), so the hint opens the help that lists its arguments.
+    let command: Vec<&str> = text
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("Usage: "))
+        .map(|usage| {
+            usage
+                .split_whitespace()
+                .take_while(|w| {
+                    !w.starts_with('-') && w.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let command = if command.is_empty() {
+        "surftile".to_string()
+    } else {
+        command.join(" ")
+    };
+    line.push_str(&format!("; see '{command} --help'"));
     line
 }
 
