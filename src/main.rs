@@ -175,22 +175,22 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
         /// Tile side in pixels (a power of two); default: the largest power of two that fits, at most 256.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         patch: Option<usize>,
         /// Number of tiles in the bank.
-        #[arg(long, default_value_t = 8)]
+        #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
         bank_size: usize,
         /// Pixel spacing of the exemplar in µm (overrides the file's).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         spacing: Option<f64>,
         /// Seed of the random phases and crops.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u64,
         /// Plane levelling: auto (height maps only), plane or none.
         #[arg(long, value_enum, default_value_t = Leveling::Auto)]
         level: Leveling,
         /// Integer down-sampling factor to a coarser spacing.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
         downsample: usize,
         /// Down-sampling filter: nearest (seed 000) or area.
         #[arg(long, value_enum, default_value_t = FilterArg::Nearest)]
@@ -199,7 +199,7 @@ enum Command {
         #[arg(long)]
         fill_missing: bool,
         /// Triangle edge of the blend grid in pixels; default: half the tile side.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         triangle_edge: Option<f64>,
         /// How crops are made periodic before RPN/ADSN.
         #[arg(long, value_enum, default_value_t = Taper::Hann)]
@@ -208,7 +208,7 @@ enum Command {
         #[arg(long)]
         raw_shape: Option<String>,
         /// Roller: number of tiles with identical borders.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
         tiles: usize,
         /// Roller and RSGF: periodicity vectors "ux,uy;vx,vy" in pixels, instead of detection.
         #[arg(long, allow_hyphen_values = true)]
@@ -217,16 +217,16 @@ enum Command {
         #[arg(long)]
         tile: Option<String>,
         /// Roller: overlap (cut band) width in pixels; default: a sixth of the tile, ≥ 8.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         overlap: Option<usize>,
         /// RSGF: block side in pixels.
-        #[arg(long, default_value_t = 40)]
+        #[arg(long, default_value_t = 40, allow_negative_numbers = true)]
         block: usize,
         /// RSGF: border (patch overlap on each side) in pixels, below half the block.
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
         border: usize,
         /// RSGF: gap candidates within ± this many pixels of a lattice multiple.
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
         tolerance: usize,
         /// RSGF: border measure of the gap filling.
         #[arg(long, value_enum, default_value_t = Metric::Ssd)]
@@ -235,7 +235,7 @@ enum Command {
         #[arg(long)]
         stochastic: bool,
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
-        #[arg(long, default_value_t = 2)]
+        #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,
     },
     /// Seed 000's sandblast pipeline: a height map of any size at any coarser spacing
@@ -244,33 +244,33 @@ enum Command {
         /// Measured height map: .png, .tif/.tiff, .npy, or .raw/.f32 (with --raw-shape).
         exemplar: PathBuf,
         /// Target pixel spacing in µm (at least the measurement's); default: the measurement's.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         spacing: Option<f64>,
         /// The measurement's pixel spacing in µm, overriding its file's.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         exemplar_spacing: Option<f64>,
         /// Output width in pixels.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         w: usize,
         /// Output height in pixels.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         h: usize,
         /// Output file: .png (16-bit), .tif (f32) or .npy (f32).
         #[arg(long)]
         out: PathBuf,
         /// Patch side for stitching, in pixels; default: the smaller side of the
         /// down-sampled measurement, at most 1024.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         patch: Option<usize>,
         /// Overlap of neighbouring patches in pixels; default: half the patch.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         overlap: Option<usize>,
         /// Radius in pixels of the multi-band seam blend, below half the overlap; 0 keeps
         /// seed 000's hard cut with a 3×3 mean. Default: an eighth of the overlap.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         seam_blend: Option<usize>,
         /// Seed of crop positions and random phases.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u64,
         /// Padded RPN with a sigmoid border instead of stitching (seed 000, Fig. 8).
         #[arg(long)]
@@ -298,7 +298,7 @@ enum Command {
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         step: f64,
         /// Placement seed (which tile goes where; a model's or milling's random draws).
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u32,
         /// Output file.
         #[arg(long)]
@@ -348,7 +348,7 @@ enum Command {
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         step: f64,
         /// Seed of the ring parameters and noise.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u32,
         /// Output file.
         #[arg(long)]
@@ -365,10 +365,10 @@ enum Command {
         /// Bank file, milling configuration (.toml) or milling preset name.
         source: PathBuf,
         /// Window width in pixels.
-        #[arg(long, default_value_t = 800)]
+        #[arg(long, default_value_t = 800, allow_negative_numbers = true)]
         width: u32,
         /// Window height in pixels.
-        #[arg(long, default_value_t = 600)]
+        #[arg(long, default_value_t = 600, allow_negative_numbers = true)]
         height: u32,
         /// x of the top-left screen pixel, in surface pixels.
         #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -380,7 +380,7 @@ enum Command {
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
         scale: f64,
         /// Placement seed.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u32,
         /// Pixel spacing of a milling source, in µm.
         #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
@@ -393,7 +393,7 @@ enum Command {
         headless: bool,
         /// Frames to draw, then exit (default: the script's length plus one; a window
         /// without a script stays open).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         frames: Option<usize>,
         /// Moves, one per frame: "pan DX DY [N]; zoom F [N]; wait [N]; settle; seed S;
         /// view height|shaded|mask; light AZ EL; goto X Y; close".
@@ -403,7 +403,7 @@ enum Command {
         #[arg(long)]
         screenshot: Option<PathBuf>,
         /// Page cache (RSGF, milling, and banks on a software GPU), in MiB.
-        #[arg(long, default_value_t = 256)]
+        #[arg(long, default_value_t = 256, allow_negative_numbers = true)]
         cache_mb: usize,
         /// Fill each frame of a bank on the GPU even on a software adapter, instead of
         /// going through GPU-filled pages.
@@ -428,7 +428,7 @@ enum Command {
         #[arg(allow_negative_numbers = true)]
         y: f64,
         /// Placement seed.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u32,
         /// Pixel spacing of a milling source, in µm.
         #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
@@ -449,7 +449,7 @@ enum Command {
         /// Synthesised height map.
         b: PathBuf,
         /// Cell size in pixels for the seam score of B.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         cell: Option<usize>,
         /// Plane levelling of both maps before comparing.
         #[arg(long, value_enum, default_value_t = Leveling::Plane)]
@@ -549,6 +549,10 @@ fn one_line(e: &clap::Error) -> String {
             missing.join(", ")
         );
     }
+    // The standard library's parse errors, in the terms of the argument.
+    line = line
+        .replace("invalid digit found in string", "expected a whole number")
+        .replace("invalid float literal", "expected a number");
     if let Some(ContextValue::Strings(values)) = e.get(ContextKind::ValidValue) {
         line.push_str(&format!(" (expected one of: {})", values.join(", ")));
     }
@@ -1067,6 +1071,7 @@ fn run(command: Command) -> Result<()> {
             }
             let pipeline = b.build()?;
             check_output(&out)?;
+            surftile::io::Format::from_path(&out)?;
             let start = Instant::now();
             let image = read_image(&exemplar, &raw_options(&raw_shape)?)?;
             let source = exemplar.display().to_string();

@@ -223,6 +223,52 @@ fn missing_arguments_are_named() {
     assert_clean_failure(dir.path(), &r, "missing arguments: <A>, <B>", "none");
     let r = surftile(dir.path(), &["bake", "--out", "b.bank"]);
     assert_clean_failure(dir.path(), &r, "missing argument: <EXEMPLAR>", "b.bank");
+    // Negative numbers reach the argument's own check, or are named as not whole.
+    let sandblast = |extra: &[&str]| {
+        let mut args = vec![
+            "sandblast",
+            "x.npy",
+            "--w",
+            "8",
+            "--h",
+            "8",
+            "--out",
+            "o.tif",
+        ];
+        args.extend_from_slice(extra);
+        surftile(dir.path(), &args)
+    };
+    let r = sandblast(&["--spacing", "-1"]);
+    assert_clean_failure(dir.path(), &r, "invalid spacing = -1", "o.tif");
+    let r = sandblast(&["--patch", "-64"]);
+    assert_clean_failure(
+        dir.path(),
+        &r,
+        "'-64' for '--patch <PATCH>': expected a whole number",
+        "o.tif",
+    );
+    // The output's format is checked before the measurement is even read.
+    let r = surftile(
+        dir.path(),
+        &[
+            "sandblast",
+            "x.npy",
+            "--w",
+            "8",
+            "--h",
+            "8",
+            "--out",
+            "o.bmp",
+        ],
+    );
+    assert_clean_failure(dir.path(), &r, "unknown image extension 'bmp'", "o.bmp");
+    let r = sandblast(&["--spacing", "abc"]);
+    assert_clean_failure(
+        dir.path(),
+        &r,
+        "'abc' for '--spacing <SPACING>': expected a number",
+        "o.tif",
+    );
 
     let origin = |args: &[&str], out: &str| {
         let r = surftile(dir.path(), args);
