@@ -1,7 +1,8 @@
 //! 2-D FFTs on top of rustfft, with plans built once per size and reused.
 //!
-//! Data is row-major `height × width` complex f64. Transforms are unnormalised in both
-//! directions (rustfft's convention): `inverse(forward(x)) = width · height · x`.
+//! [`Fft2`]: row-major `height × width` complex f64, unnormalised in both directions
+//! (rustfft's convention): `inverse(forward(x)) = width · height · x`. [`RealFft2`]: real
+//! planes through their half spectra, about twice as fast, its inverse normalised.
 
 use std::sync::Arc;
 
@@ -80,6 +81,111 @@ impl Fft2 {
     }
 }
 
+/// 2-D transforms of real `width × height` planes through their half spectrum: the
+/// `width / 2 + 1` columns kx = 0 … width/2 of the full spectrum, row-major with that
+/// width (the other columns are their conjugates mirrored). Rows go through a real FFT
+/// (`realfft`), columns through complex ones, so a transform costs about half of
+/// [`Fft2`]'s on the same plane.
+pub struct RealFft2 {
+    width: usize,
+    height: usize,
+    row_fwd: Arc<dyn realfft::RealToComplex<f64>>,
+    row_inv: Arc<dyn realfft::ComplexToReal<f64>>,
+    col_fwd: Arc<dyn Fft<f64>>,
+    col_inv: Arc<dyn Fft<f64>>,
+    real_row: Vec<f64>,
+    real_scratch: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+    transposed: Vec<Complex64>,
+}
+
+impl RealFft2 {
+    /// Plans transforms for a `width × height` plane (both ≥ 1).
+    pub fn new(width: usize, height: usize) -> Self {
+        let mut real = realfft::RealFftPlanner::<f64>::new();
+        let row_fwd = real.plan_fft_forward(width);
+        let row_inv = real.plan_fft_inverse(width);
+        let mut planner = FftPlanner::new();
+        let col_fwd = planner.plan_fft_forward(height);
+        let col_inv = planner.plan_fft_inverse(height);
+        let scratch_len = col_fwd
+            .get_inplace_scratch_len()
+            .max(col_inv.get_inplace_scratch_len());
+        let real_scratch_len = row_fwd.get_scratch_len().max(row_inv.get_scratch_len());
+        RealFft2 {
+            width,
+            height,
+            row_fwd,
+            row_inv,
+            col_fwd,
+            col_inv,
+            real_row: vec![0.0; width],
+            real_scratch: vec![Complex64::default(); real_scratch_len],
+            scratch: vec![Complex64::default(); scratch_len],
+            transposed: vec![Complex64::default(); (width / 2 + 1) * height],
+        }
+    }
+
+    /// Columns of the half spectrum: `width / 2 + 1`.
+    pub fn half_width(&self) -> usize {
+        self.width / 2 + 1
+    }
+
+    /// Half spectrum of a real row-major plane.
+    pub fn forward(&mut self, plane: &[f64]) -> Vec<Complex64> {
+        let (w, h, hw) = (self.width, self.height, self.half_width());
+        assert_eq!(plane.len(), w * h, "RealFft2: wrong plane size");
+        let mut half = vec![Complex64::default(); hw * h];
+        for (row, out) in plane.chunks_exact(w).zip(half.chunks_exact_mut(hw)) {
+            self.real_row.copy_from_slice(row);
+            // Lengths match the plan, the only error realfft reports for a forward
+            // transform.
+            let _ =
+                self.row_fwd
+                    .process_with_scratch(&mut self.real_row, out, &mut self.real_scratch);
+        }
+        self.columns(&mut half, true);
+        half
+    }
+
+    /// Real plane of a half spectrum, normalised (divided by `width · height`). The
+    /// imaginary parts of columns 0 and, for an even width, width/2 are dropped: the
+    /// real part of the full inverse, as [`inverse_real`] takes it.
+    pub fn inverse(&mut self, mut half: Vec<Complex64>) -> Vec<f64> {
+        let (w, h, hw) = (self.width, self.height, self.half_width());
+        assert_eq!(half.len(), hw * h, "RealFft2: wrong spectrum size");
+        self.columns(&mut half, false);
+        let scale = 1.0 / (w * h) as f64;
+        let mut plane = vec![0.0; w * h];
+        for (row, out) in half.chunks_exact_mut(hw).zip(plane.chunks_exact_mut(w)) {
+            row[0].im = 0.0;
+            if w % 2 == 0 {
+                row[hw - 1].im = 0.0;
+            }
+            // Lengths match the plan and the imaginary parts realfft checks are zero.
+            let _ = self
+                .row_inv
+                .process_with_scratch(row, out, &mut self.real_scratch);
+            for v in out.iter_mut() {
+                *v *= scale;
+            }
+        }
+        plane
+    }
+
+    fn columns(&mut self, half: &mut [Complex64], forward: bool) {
+        let (h, hw) = (self.height, self.half_width());
+        let cols = if forward {
+            &self.col_fwd
+        } else {
+            &self.col_inv
+        };
+        transpose::transpose(half, &mut self.transposed, hw, h);
+        cols.process_with_scratch(&mut self.transposed, &mut self.scratch);
+        transpose::transpose(&self.transposed, half, h, hw);
+    }
+}
+
 /// Forward FFT of a real row-major plane.
 pub fn forward_real(plan: &mut Fft2, plane: &[f64]) -> Vec<Complex64> {
     let mut data: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();
@@ -116,6 +222,36 @@ mod tests {
             }
         }
         out
+    }
+
+    /// The half spectrum is the full one's first width/2 + 1 columns, and back again
+    /// gives the plane, on odd and even sizes.
+    #[test]
+    fn real_transform_is_the_full_ones_half() {
+        for &(w, h) in &[(8usize, 8usize), (7, 5), (12, 9), (1, 6), (6, 1)] {
+            let plane: Vec<f64> = (0..w * h).map(|i| (i as f64 * 0.37).sin() + 0.2).collect();
+            let full = naive_dft(
+                &plane
+                    .iter()
+                    .map(|&v| Complex64::new(v, 0.0))
+                    .collect::<Vec<_>>(),
+                w,
+                h,
+            );
+            let mut plan = RealFft2::new(w, h);
+            let hw = plan.half_width();
+            let half = plan.forward(&plane);
+            for ky in 0..h {
+                for kx in 0..hw {
+                    let (a, b) = (half[ky * hw + kx], full[ky * w + kx]);
+                    assert!((a - b).norm() < 1e-9, "{w}×{h} ({kx}, {ky}): {a} vs {b}");
+                }
+            }
+            let back = plan.inverse(half);
+            for (a, b) in back.iter().zip(&plane) {
+                assert!((a - b).abs() < 1e-12, "{w}×{h}: {a} vs {b}");
+            }
+        }
     }
 
     #[test]

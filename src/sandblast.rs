@@ -38,7 +38,8 @@ pub const MAX_OUTPUT_PIXELS: usize = 1 << 30;
 /// measured maps, 512 px patches give a PSD error about half that of seed 000's 256,
 /// and on the 650² ones (matrix-2, x3p-2) whole-side patches take it from 0.21 and
 /// 0.20 at 512 px to 0.15 and 0.14. The larger patches cost time: a 2048² output from
-/// x3p-2 takes 2.1 s with 650 px patches against 1.7 s with 512 px ones.
+/// x3p-2 took 2.1 s with 650 px patches against 1.7 s with 512 px ones (before RPN
+/// went through real FFTs).
 pub const DEFAULT_PATCH: usize = 1024;
 /// Histogram/modulus alternations per RPN output with `match_histogram`.
 /// Sixteen converge further than eight: with the defaults, di-4's PSD error at 1024² goes

@@ -282,6 +282,16 @@ impl Acf {
     }
 }
 
+/// FFT index `k` of an `n`-point transform as a signed frequency: k up to n/2, k − n
+/// above.
+fn signed_frequency(k: usize, n: usize) -> f64 {
+    if k <= n / 2 {
+        k as f64
+    } else {
+        k as f64 - n as f64
+    }
+}
+
 fn shortest_longest(profile: &[f64; 180]) -> (f64, f64) {
     profile
         .iter()
@@ -339,13 +349,7 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
     let bins = n / 2 + 1;
     let mut power = vec![0.0; bins];
     let mut count = vec![0usize; bins];
-    let bin_of = |k: usize| {
-        if k <= n / 2 {
-            k as f64
-        } else {
-            k as f64 - n as f64
-        }
-    };
+    let bin_of = |k: usize| signed_frequency(k, n);
     for ky in 0..n {
         for kx in 0..n {
             let rad = bin_of(kx).hypot(bin_of(ky));
@@ -438,31 +442,28 @@ pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
 }
 
 /// The PSD error's comparison of a periodic spectrum `b` with a target modulus `a`, both
-/// on the same `w × h` grid (FFT order, no window): power summed over integer radial
-/// bins, radii scaled so the smaller side's frequencies are whole numbers, bins merged
-/// as [`psd_error`] does. What IAAFT uses to judge how far a projection left the
-/// modulus it had to keep.
+/// half spectra of real `w × h` planes ([`crate::fft::RealFft2`]: columns kx = 0 … w/2,
+/// no window): power summed over integer radial bins, each column that stands for its
+/// mirror image too counted twice, radii scaled so the smaller side's frequencies are
+/// whole numbers, bins merged as [`psd_error`] does. What IAAFT uses to judge how far a
+/// projection left the modulus it had to keep.
 pub fn spectrum_log_error(a: &[f64], b: &[Complex64], w: usize, h: usize) -> f64 {
+    let hw = w / 2 + 1;
     let side = w.min(h) as f64;
     let bins = w.min(h) / 2 + 1;
     let (mut sa, mut sb, mut counts) = (vec![0.0; bins], vec![0.0; bins], vec![0usize; bins]);
-    let signed = |k: usize, n: usize| {
-        if k <= n / 2 {
-            k as f64
-        } else {
-            k as f64 - n as f64
-        }
-    };
     for ky in 0..h {
-        let fy = signed(ky, h) * side / h as f64;
-        for kx in 0..w {
-            let fx = signed(kx, w) * side / w as f64;
+        let fy = signed_frequency(ky, h) * side / h as f64;
+        for kx in 0..hw {
+            let fx = kx as f64 * side / w as f64;
             let rad = (fx * fx + fy * fy).sqrt();
             if rad >= 1.0 && (rad as usize) < bins {
-                let i = ky * w + kx;
-                sa[rad as usize] += a[i] * a[i];
-                sb[rad as usize] += b[i].norm_sqr();
-                counts[rad as usize] += 1;
+                // Column 0 and, for an even width, column w/2 are their own mirrors.
+                let copies = if kx == 0 || 2 * kx == w { 1 } else { 2 };
+                let i = ky * hw + kx;
+                sa[rad as usize] += (copies as f64) * a[i] * a[i];
+                sb[rad as usize] += (copies as f64) * b[i].norm_sqr();
+                counts[rad as usize] += copies;
             }
         }
     }
@@ -632,6 +633,59 @@ mod tests {
         );
         assert!(s.str < 0.2, "Str {}", s.str);
         assert!(s.repetition > 0.95, "repetition {}", s.repetition);
+    }
+
+    /// The half-spectrum binning against a slow twin that bins every frequency of the
+    /// full spectra, on odd and even sizes: the same sums, so the same error to 1e-12.
+    #[test]
+    fn spectrum_log_error_of_half_spectra_is_the_full_spectra_binning() {
+        use crate::fft::{Fft2, RealFft2, forward_real};
+        let full_binning = |a: &[Complex64], b: &[Complex64], w: usize, h: usize| {
+            let side = w.min(h) as f64;
+            let bins = w.min(h) / 2 + 1;
+            let (mut sa, mut sb, mut counts) =
+                (vec![0.0; bins], vec![0.0; bins], vec![0usize; bins]);
+            let signed = signed_frequency;
+            for ky in 0..h {
+                for kx in 0..w {
+                    let (fx, fy) = (
+                        signed(kx, w) * side / w as f64,
+                        signed(ky, h) * side / h as f64,
+                    );
+                    let rad = (fx * fx + fy * fy).sqrt();
+                    if rad >= 1.0 && (rad as usize) < bins {
+                        sa[rad as usize] += a[ky * w + kx].norm_sqr();
+                        sb[rad as usize] += b[ky * w + kx].norm_sqr();
+                        counts[rad as usize] += 1;
+                    }
+                }
+            }
+            log_rms_over_merged_bins(&sa, &sb, &counts)
+        };
+        for (w, h) in [(64usize, 48usize), (63, 50), (40, 77)] {
+            let a: Vec<f64> = (0..w * h).map(|i| ((i * 7919) % 101) as f64).collect();
+            let b: Vec<f64> = (0..w * h)
+                .map(|i| (i as f64 * 0.3).sin() + ((i * 31) % 7) as f64)
+                .collect();
+            let mut full = Fft2::new(w, h);
+            let expected = full_binning(
+                &forward_real(&mut full, &a),
+                &forward_real(&mut full, &b),
+                w,
+                h,
+            );
+            let mut half = RealFft2::new(w, h);
+            let modulus: Vec<f64> = half.forward(&a).iter().map(|c| c.norm()).collect();
+            let got = spectrum_log_error(&modulus, &half.forward(&b), w, h);
+            assert!(
+                expected > 0.1,
+                "{w}×{h}: the spectra should differ ({expected})"
+            );
+            assert!(
+                (got - expected).abs() < 1e-12,
+                "{w}×{h}: {got} vs {expected}"
+            );
+        }
     }
 
     /// 512² box-filtered noise (9×9, periodic) does not repeat: its score is the

@@ -224,23 +224,14 @@ fn missing_arguments_are_named() {
     let r = surftile(dir.path(), &["bake", "--out", "b.bank"]);
     assert_clean_failure(dir.path(), &r, "missing argument: <EXEMPLAR>", "b.bank");
     // Negative numbers reach the argument's own check, or are named as not whole.
-    let sandblast = |extra: &[&str]| {
-        let mut args = vec![
-            "sandblast",
-            "x.npy",
-            "--w",
-            "8",
-            "--h",
-            "8",
-            "--out",
-            "o.tif",
-        ];
+    let sandblast = |out: &str, extra: &[&str]| {
+        let mut args = vec!["sandblast", "x.npy", "--w", "8", "--h", "8", "--out", out];
         args.extend_from_slice(extra);
         surftile(dir.path(), &args)
     };
-    let r = sandblast(&["--spacing", "-1"]);
+    let r = sandblast("o.tif", &["--spacing", "-1"]);
     assert_clean_failure(dir.path(), &r, "invalid spacing = -1", "o.tif");
-    let r = sandblast(&["--patch", "-64"]);
+    let r = sandblast("o.tif", &["--patch", "-64"]);
     assert_clean_failure(
         dir.path(),
         &r,
@@ -248,21 +239,9 @@ fn missing_arguments_are_named() {
         "o.tif",
     );
     // The output's format is checked before the measurement is even read.
-    let r = surftile(
-        dir.path(),
-        &[
-            "sandblast",
-            "x.npy",
-            "--w",
-            "8",
-            "--h",
-            "8",
-            "--out",
-            "o.bmp",
-        ],
-    );
+    let r = sandblast("o.bmp", &[]);
     assert_clean_failure(dir.path(), &r, "unknown image extension 'bmp'", "o.bmp");
-    let r = sandblast(&["--spacing", "abc"]);
+    let r = sandblast("o.tif", &["--spacing", "abc"]);
     assert_clean_failure(
         dir.path(),
         &r,
