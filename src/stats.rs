@@ -6,7 +6,7 @@
 use rustfft::num_complex::Complex64;
 use serde::Serialize;
 
-use crate::fft::{Fft2, forward_real};
+use crate::fft::RealFft2;
 use crate::raster::Raster;
 
 /// The ACF threshold of ISO 25178's Sal and Str.
@@ -165,14 +165,14 @@ impl Acf {
                 padded[y * pw + x] = r.get(x, y, 0) as f64 - mean;
             }
         }
-        let mut plan = Fft2::new(pw, ph);
-        let mut spec = forward_real(&mut plan, &padded);
+        // Half spectra: a real plane's power spectrum is its own mirror image.
+        let mut plan = RealFft2::new(pw, ph);
+        let mut spec = plan.forward(&padded);
+        drop(padded);
         for s in &mut spec {
             *s = Complex64::new(s.norm_sqr(), 0.0);
         }
-        plan.inverse(&mut spec);
-        let scale = 1.0 / (pw * ph) as f64;
-        let raw: Vec<f64> = spec.iter().map(|c| c.re * scale).collect();
+        let raw = plan.inverse(spec);
         let zero_lag = raw[0];
         Acf {
             w,
@@ -304,10 +304,14 @@ fn shortest_longest(profile: &[f64; 180]) -> (f64, f64) {
 pub fn wasserstein1_standardised(a: &Raster, b: &Raster) -> f64 {
     let (mean, sd) = moments(&a.data);
     let sd = if sd > 0.0 { sd } else { 1.0 };
+    // Sorted as the f32 they are (a radix sort of 4-byte keys), then standardised: the
+    // map is increasing, so the order is the same.
     let prep = |r: &Raster| {
-        let mut v: Vec<f64> = r.data.iter().map(|&x| (x as f64 - mean) / sd).collect();
-        v.sort_by(f64::total_cmp);
-        v
+        let mut v = r.data.clone();
+        radsort::sort(&mut v);
+        v.iter()
+            .map(|&x| (x as f64 - mean) / sd)
+            .collect::<Vec<f64>>()
     };
     wasserstein1_sorted(&prep(a), &prep(b))
 }
@@ -345,18 +349,23 @@ pub fn wasserstein1_sorted(a: &[f64], b: &[f64]) -> f64 {
 /// window.
 fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>) {
     let hann: Vec<f64> = (0..n).map(|i| crate::analysis::taper::hann(i, n)).collect();
-    let mut plan = Fft2::new(n, n);
+    // Half spectra (real FFTs): each column that stands for its mirror image too counts
+    // twice. Each frequency's radius bin and weight, once for every window.
+    let mut plan = RealFft2::new(n, n);
+    let hw = plan.half_width();
     let bins = n / 2 + 1;
     let mut power = vec![0.0; bins];
     let mut count = vec![0usize; bins];
-    let bin_of = |k: usize| signed_frequency(k, n);
-    for ky in 0..n {
-        for kx in 0..n {
-            let rad = bin_of(kx).hypot(bin_of(ky));
-            if rad >= 1.0 && rad <= (n / 2) as f64 {
-                count[rad as usize] += 1;
-            }
-        }
+    let weighted_bins: Vec<Option<(usize, usize)>> = (0..n * hw)
+        .map(|i| {
+            let (kx, ky) = (i % hw, i / hw);
+            let rad = (kx as f64).hypot(signed_frequency(ky, n));
+            let copies = if kx == 0 || 2 * kx == n { 1 } else { 2 };
+            (rad >= 1.0 && rad <= (n / 2) as f64).then_some((rad as usize, copies))
+        })
+        .collect();
+    for &(bin, copies) in weighted_bins.iter().flatten() {
+        count[bin] += copies;
     }
     let mut windows = 0;
     'outer: for wy in 0..r.height / n {
@@ -372,13 +381,9 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
             for (i, v) in win.iter_mut().enumerate() {
                 *v = (*v - m) * hann[i % n] * hann[i / n];
             }
-            let spec = forward_real(&mut plan, &win);
-            for ky in 0..n {
-                for kx in 0..n {
-                    let rad = bin_of(kx).hypot(bin_of(ky));
-                    if rad >= 1.0 && rad <= (n / 2) as f64 {
-                        power[rad as usize] += spec[ky * n + kx].norm_sqr();
-                    }
+            for (s, wb) in plan.forward(&win).iter().zip(&weighted_bins) {
+                if let Some((bin, copies)) = *wb {
+                    power[bin] += copies as f64 * s.norm_sqr();
                 }
             }
         }
@@ -685,6 +690,63 @@ mod tests {
                 (got - expected).abs() < 1e-12,
                 "{w}×{h}: {got} vs {expected}"
             );
+        }
+    }
+
+    /// radial_psd through half spectra against a slow twin that bins every frequency of
+    /// a full complex spectrum, for even and odd window sides and several windows.
+    #[test]
+    fn radial_psd_of_half_spectra_is_the_full_spectra_binning() {
+        use crate::fft::{Fft2, forward_real};
+        let r = raster(70, 50, |x, y| {
+            (0.3 * x as f64).sin()
+                + 0.5 * (0.17 * y as f64 + 0.05 * x as f64).cos()
+                + ((x * 7919 + y * 31) % 17) as f64 * 0.03
+        });
+        for n in [24usize, 21] {
+            let (power, count) = radial_psd(&r, n, 64);
+            let hann: Vec<f64> = (0..n).map(|i| crate::analysis::taper::hann(i, n)).collect();
+            let mut plan = Fft2::new(n, n);
+            let bins = n / 2 + 1;
+            let (mut p_full, mut c_full) = (vec![0.0; bins], vec![0usize; bins]);
+            let mut windows = 0;
+            for wy in 0..r.height / n {
+                for wx in 0..r.width / n {
+                    windows += 1;
+                    let mut win: Vec<f64> = (0..n * n)
+                        .map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64)
+                        .collect();
+                    let m = win.iter().sum::<f64>() / (n * n) as f64;
+                    for (i, v) in win.iter_mut().enumerate() {
+                        *v = (*v - m) * hann[i % n] * hann[i / n];
+                    }
+                    let spec = forward_real(&mut plan, &win);
+                    for ky in 0..n {
+                        for kx in 0..n {
+                            let rad = signed_frequency(kx, n).hypot(signed_frequency(ky, n));
+                            if rad >= 1.0 && rad <= (n / 2) as f64 {
+                                p_full[rad as usize] += spec[ky * n + kx].norm_sqr();
+                                if windows == 1 {
+                                    c_full[rad as usize] += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            assert!(windows > 1, "the test should average several windows");
+            assert_eq!(count, c_full, "n = {n}");
+            for (k, (&a, &b)) in power.iter().zip(&p_full).enumerate() {
+                let b = if c_full[k] > 0 {
+                    b / (c_full[k] * windows) as f64
+                } else {
+                    b
+                };
+                assert!(
+                    (a - b).abs() <= 1e-9 * b.abs().max(1e-12),
+                    "n = {n}, bin {k}: {a} vs {b}"
+                );
+            }
         }
     }
 
