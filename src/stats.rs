@@ -356,16 +356,22 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
     let bins = n / 2 + 1;
     let mut power = vec![0.0; bins];
     let mut count = vec![0usize; bins];
-    let weighted_bins: Vec<Option<(usize, usize)>> = (0..n * hw)
+    let copies = |kx: usize| if kx == 0 || 2 * kx == n { 1 } else { 2 };
+    // u32::MAX: outside the bins.
+    let bin_of: Vec<u32> = (0..n * hw)
         .map(|i| {
-            let (kx, ky) = (i % hw, i / hw);
-            let rad = (kx as f64).hypot(signed_frequency(ky, n));
-            let copies = if kx == 0 || 2 * kx == n { 1 } else { 2 };
-            (rad >= 1.0 && rad <= (n / 2) as f64).then_some((rad as usize, copies))
+            let rad = ((i % hw) as f64).hypot(signed_frequency(i / hw, n));
+            if rad >= 1.0 && rad <= (n / 2) as f64 {
+                rad as u32
+            } else {
+                u32::MAX
+            }
         })
         .collect();
-    for &(bin, copies) in weighted_bins.iter().flatten() {
-        count[bin] += copies;
+    for (i, &bin) in bin_of.iter().enumerate() {
+        if bin != u32::MAX {
+            count[bin as usize] += copies(i % hw);
+        }
     }
     let mut windows = 0;
     'outer: for wy in 0..r.height / n {
@@ -381,9 +387,12 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
             for (i, v) in win.iter_mut().enumerate() {
                 *v = (*v - m) * hann[i % n] * hann[i / n];
             }
-            for (s, wb) in plan.forward(&win).iter().zip(&weighted_bins) {
-                if let Some((bin, copies)) = *wb {
-                    power[bin] += copies as f64 * s.norm_sqr();
+            let spec = plan.forward(&win);
+            for (row, bins) in spec.chunks_exact(hw).zip(bin_of.chunks_exact(hw)) {
+                for (kx, (s, &bin)) in row.iter().zip(bins).enumerate() {
+                    if bin != u32::MAX {
+                        power[bin as usize] += copies(kx) as f64 * s.norm_sqr();
+                    }
                 }
             }
         }
