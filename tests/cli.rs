@@ -615,16 +615,44 @@ fn lattice_estimation_from_the_command_line() {
     );
     let plot = std::fs::read(dir.path().join("acf.png")).unwrap();
     assert_eq!(&plot[1..4], b"PNG");
+    // A true lattice dips between its points: no ridge note.
+    assert!(!r.stderr.contains("note:"), "{}", r.stderr);
 
     let mut state = 7u64;
-    let noise: Vec<f32> = (0..96 * 96)
-        .map(|_| {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
+    let mut uniform = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    // Stripes 12 px apart, with a faint ripple every 20 px along them and noise: γ is a
+    // ridge along x with faint bumps, the estimator takes a step along it, and the step
+    // is noted as not a measured repetition.
+    let stripes: Vec<f32> = (0..160 * 200)
+        .map(|i| {
+            let (x, y) = ((i % 200) as f32, (i / 200) as f32);
+            (std::f32::consts::TAU * y / 12.0).sin()
+                + 0.1 * (std::f32::consts::TAU * x / 20.0).sin()
+                + 0.1 * uniform()
         })
         .collect();
+    let stripes = surftile::Raster::from_vec(200, 160, 1, stripes).unwrap();
+    surftile::io::write_heights(&dir.path().join("stripes.npy"), &stripes, None).unwrap();
+    let r = surftile(dir.path(), &["lattice", "stripes.npy", "--json"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let j: serde_json::Value = serde_json::from_str(r.stdout.trim()).unwrap();
+    let along = ["v1", "v2"]
+        .into_iter()
+        .find(|k| j[*k][1].as_i64() == Some(0))
+        .unwrap_or_else(|| panic!("no vector along the stripes: {j}"));
+    assert!(
+        r.stderr
+            .contains(&format!("does not dip on the way to {along} = ")),
+        "{along} of {j}: {}",
+        r.stderr
+    );
+
+    let noise: Vec<f32> = (0..96 * 96).map(|_| uniform()).collect();
     let noise = surftile::Raster::from_vec(96, 96, 1, noise).unwrap();
     surftile::io::write_heights(&dir.path().join("noise.npy"), &noise, None).unwrap();
     let r = surftile(dir.path(), &["lattice", "noise.npy", "--plot", "none.png"]);

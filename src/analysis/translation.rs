@@ -41,6 +41,30 @@ pub const MIN_TILE_AREA: i64 = 16;
 /// Least mean γ over the multiples of the best pair for a lattice to be reported.
 pub const MIN_MEAN_GAMMA: f64 = 0.3;
 
+/// Least dip of γ between the origin and a lattice vector ([`dip_before`]) for the vector
+/// to count as a repetition rather than a step along a ridge.
+pub const RIDGE_DIP: f64 = 0.05;
+
+/// How far γ dips on the way to `v`: γ(v) minus the least γ at ¼, ½ and ¾ of `v` (lags
+/// rounded to whole pixels). A repetition at `v` shows a dip. Where γ stays up all the
+/// way (a dip under [`RIDGE_DIP`]), γ is a ridge along `v` — stripes, a lay, the mortar
+/// lines of a brick wall — on which any step repeats about as well, so eq. 9, which
+/// favours small tiles, picks the step from noise and `v`'s length means little. Not in
+/// seed 002: a check for the caller to report.
+pub fn dip_before(map: &NccMap, v: (i64, i64)) -> f64 {
+    let at = |t: f64| {
+        map.at(
+            (v.0 as f64 * t).round() as i64,
+            (v.1 as f64 * t).round() as i64,
+        )
+    };
+    at(1.0)
+        - [0.25, 0.5, 0.75]
+            .map(at)
+            .into_iter()
+            .fold(f64::MAX, f64::min)
+}
+
 /// Two translation vectors and their goodness (eq. 9).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Translation {
