@@ -732,16 +732,8 @@ fn lattice_command(
     if let Some(out) = plot {
         write_lattice_plot(out, &map, t)?;
     }
-    for (name, v) in [("v1", t.v1), ("v2", t.v2)] {
-        let dip = translation::dip_before(&map, v);
-        if dip < translation::RIDGE_DIP {
-            eprintln!(
-                "note: the autocorrelation does not dip on the way to {name} = ({}, {}) ({dip:.3} under its {:.3}): a ridge, as of stripes or mortar lines, along which any step repeats about as well, so {name}'s length is not a measured repetition; give the lattice with --lattice \"ux,uy;vx,vy\" if it is wrong",
-                v.0,
-                v.1,
-                map.at(v.0, v.1)
-            );
-        }
+    for note in translation::ridge_notes(&map, &t) {
+        eprintln!("{note}");
     }
     if json {
         println!(

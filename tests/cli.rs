@@ -680,6 +680,25 @@ fn rsgf_from_the_command_line() {
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(r.stderr.contains("lattice estimated"), "{}", r.stderr);
+    assert!(!r.stderr.contains("note:"), "{}", r.stderr);
+    // A ridged measurement: the estimated v2 runs along the ridges, and the bake says so.
+    let r = surftile(
+        dir.path(),
+        &[
+            "bake",
+            &common::repo("tiles/x3p-2-crop.npy").display().to_string(),
+            "--method",
+            "rsgf",
+            "--out",
+            "ridges.bank",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("does not dip on the way to v2"),
+        "{}",
+        r.stderr
+    );
     let r = surftile(dir.path(), &["info", "grid.bank"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(

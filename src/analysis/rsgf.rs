@@ -4,7 +4,9 @@
 //! ([`crate::stream::RsgfSurface`]).
 
 use crate::analysis::ncc::autocorrelation;
-use crate::analysis::translation::{BAKE_WITHOUT_LATTICE, MIN_MEAN_GAMMA, best_pair, no_lattice};
+use crate::analysis::translation::{
+    BAKE_WITHOUT_LATTICE, MIN_MEAN_GAMMA, best_pair, no_lattice, ridge_notes,
+};
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::Result;
 use crate::raster::Raster;
@@ -77,13 +79,16 @@ pub(crate) fn bake(
         ));
         (u, v)
     } else {
-        let best = best_pair(&autocorrelation(ex)?);
-        match best {
+        let map = autocorrelation(ex)?;
+        match best_pair(&map) {
             Some(t) if t.mean_gamma >= MIN_MEAN_GAMMA => {
                 progress(&format!(
                     "lattice estimated: v1 = ({}, {}), v2 = ({}, {}), goodness {:.3}, mean γ {:.3}",
                     t.v1.0, t.v1.1, t.v2.0, t.v2.1, t.goodness, t.mean_gamma
                 ));
+                for note in ridge_notes(&map, &t) {
+                    progress(&note);
+                }
                 (t.v1, t.v2)
             }
             other => return Err(no_lattice(source, other, BAKE_WITHOUT_LATTICE)),

@@ -65,6 +65,26 @@ pub fn dip_before(map: &NccMap, v: (i64, i64)) -> f64 {
             .fold(f64::MAX, f64::min)
 }
 
+/// A note for each of `t`'s vectors that γ does not dip on the way to
+/// ([`dip_before`] under [`RIDGE_DIP`]), for the user: its length is not a measured
+/// repetition.
+pub fn ridge_notes(map: &NccMap, t: &Translation) -> Vec<String> {
+    [("v1", t.v1), ("v2", t.v2)]
+        .into_iter()
+        .filter_map(|(name, v)| {
+            let (dip, at) = (dip_before(map, v), map.at(v.0, v.1));
+            (dip < RIDGE_DIP).then(|| {
+                format!(
+                    "note: the autocorrelation does not dip on the way to {name} = ({}, {}) (γ {:.3} at least, {at:.3} at {name}): a ridge, as of stripes or mortar lines, along which any step repeats about as well, so {name}'s length is not a measured repetition; give the lattice with --lattice \"ux,uy;vx,vy\" if it is wrong",
+                    v.0,
+                    v.1,
+                    at - dip
+                )
+            })
+        })
+        .collect()
+}
+
 /// Two translation vectors and their goodness (eq. 9).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Translation {
