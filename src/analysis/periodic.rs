@@ -4,7 +4,7 @@
 
 use rustfft::num_complex::Complex64;
 
-use crate::fft::{Fft2, forward_real, inverse_real};
+use crate::fft::RealFft2;
 
 /// Splits a row-major `width × height` plane into (periodic, smooth) with
 /// `periodic + smooth = plane`. The periodic component's periodic discrete Laplacian
@@ -23,14 +23,16 @@ pub fn periodic_smooth(plane: &[f64], width: usize, height: usize) -> (Vec<f64>,
         v[y * w] += d;
         v[y * w + w - 1] -= d;
     }
-    let mut plan = Fft2::new(w, h);
-    let mut spec = forward_real(&mut plan, &v);
+    // Half spectra (real FFTs): the divisor is even in each frequency.
+    let mut plan = RealFft2::new(w, h);
+    let hw = plan.half_width();
+    let mut spec = plan.forward(&v);
     let two_pi = 2.0 * std::f64::consts::PI;
     for q in 0..h {
         let cy = 2.0 * (two_pi * q as f64 / h as f64).cos();
-        for r in 0..w {
+        for r in 0..hw {
             let denom = 2.0 * (two_pi * r as f64 / w as f64).cos() + cy - 4.0;
-            let k = q * w + r;
+            let k = q * hw + r;
             spec[k] = if q == 0 && r == 0 {
                 Complex64::default()
             } else {
@@ -38,7 +40,7 @@ pub fn periodic_smooth(plane: &[f64], width: usize, height: usize) -> (Vec<f64>,
             };
         }
     }
-    let smooth = inverse_real(&mut plan, spec);
+    let smooth = plan.inverse(spec);
     let periodic = plane.iter().zip(&smooth).map(|(u, s)| u - s).collect();
     (periodic, smooth)
 }
