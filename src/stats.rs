@@ -380,14 +380,7 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
                 break 'outer;
             }
             windows += 1;
-            let mut win: Vec<f64> = (0..n * n)
-                .map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64)
-                .collect();
-            let m = win.iter().sum::<f64>() / (n * n) as f64;
-            for (i, v) in win.iter_mut().enumerate() {
-                *v = (*v - m) * hann[i % n] * hann[i / n];
-            }
-            let spec = plan.forward(&win);
+            let spec = plan.forward(&tapered_window(r, (wx, wy), &hann));
             for (row, bins) in spec.chunks_exact(hw).zip(bin_of.chunks_exact(hw)) {
                 for (kx, (s, &bin)) in row.iter().zip(bins).enumerate() {
                     if bin != u32::MAX {
@@ -403,6 +396,20 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
         }
     }
     (power, count)
+}
+
+/// Window (wx, wy) of `r`'s grid of `n × n` windows (n = `hann.len()`), its mean
+/// removed and tapered by the separable window `hann`.
+fn tapered_window(r: &Raster, (wx, wy): (usize, usize), hann: &[f64]) -> Vec<f64> {
+    let n = hann.len();
+    let mut win: Vec<f64> = (0..n * n)
+        .map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64)
+        .collect();
+    let m = win.iter().sum::<f64>() / (n * n) as f64;
+    for (i, v) in win.iter_mut().enumerate() {
+        *v = (*v - m) * hann[i % n] * hann[i / n];
+    }
+    win
 }
 
 /// Log–log slope of the radially averaged power spectrum of `r` (mean over up to 64
@@ -722,14 +729,7 @@ mod tests {
             for wy in 0..r.height / n {
                 for wx in 0..r.width / n {
                     windows += 1;
-                    let mut win: Vec<f64> = (0..n * n)
-                        .map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64)
-                        .collect();
-                    let m = win.iter().sum::<f64>() / (n * n) as f64;
-                    for (i, v) in win.iter_mut().enumerate() {
-                        *v = (*v - m) * hann[i % n] * hann[i / n];
-                    }
-                    let spec = forward_real(&mut plan, &win);
+                    let spec = forward_real(&mut plan, &tapered_window(&r, (wx, wy), &hann));
                     for ky in 0..n {
                         for kx in 0..n {
                             let rad = signed_frequency(kx, n).hypot(signed_frequency(ky, n));
