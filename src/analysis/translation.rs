@@ -25,6 +25,8 @@
 //! - **No lattice.** The paper always returns a pair. We report none when the best pair's
 //!   mean γ over its multiples is under [`MIN_MEAN_GAMMA`] (a stochastic texture), so the
 //!   caller can say so and suggest `--stochastic` or `--lattice`.
+//! - **Ridges.** Where γ does not dip on the way to a reported vector ([`dip_before`]),
+//!   [`ridge_notes`] says so: the vector's length was picked along a ridge, not measured.
 
 use crate::analysis::ncc::{NccMap, autocorrelation};
 use crate::error::Result;
