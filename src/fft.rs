@@ -186,6 +186,14 @@ impl RealFft2 {
     }
 }
 
+/// How many frequencies of the full spectrum column `kx` of a [`RealFft2`] half
+/// spectrum stands for: 1 for column 0 and, for an even `width`, column width/2 (their
+/// own mirrors), 2 for the others (themselves and their mirror images). Sums of power
+/// over a half spectrum weighted by it are the full spectrum's.
+pub fn half_spectrum_copies(kx: usize, width: usize) -> usize {
+    if kx == 0 || 2 * kx == width { 1 } else { 2 }
+}
+
 /// Forward FFT of a real row-major plane.
 pub fn forward_real(plan: &mut Fft2, plane: &[f64]) -> Vec<Complex64> {
     let mut data: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();

@@ -6,7 +6,7 @@
 use rustfft::num_complex::Complex64;
 use serde::Serialize;
 
-use crate::fft::RealFft2;
+use crate::fft::{RealFft2, half_spectrum_copies};
 use crate::raster::Raster;
 
 /// The ACF threshold of ISO 25178's Sal and Str.
@@ -356,7 +356,7 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
     let bins = n / 2 + 1;
     let mut power = vec![0.0; bins];
     let mut count = vec![0usize; bins];
-    let copies = |kx: usize| if kx == 0 || 2 * kx == n { 1 } else { 2 };
+    let copies = |kx: usize| half_spectrum_copies(kx, n);
     // u32::MAX: outside the bins.
     let bin_of: Vec<u32> = (0..n * hw)
         .map(|i| {
@@ -479,8 +479,7 @@ pub fn spectrum_log_error(a: &[f64], b: &[Complex64], w: usize, h: usize) -> f64
             let fx = kx as f64 * side / w as f64;
             let rad = (fx * fx + fy * fy).sqrt();
             if rad >= 1.0 && (rad as usize) < bins {
-                // Column 0 and, for an even width, column w/2 are their own mirrors.
-                let copies = if kx == 0 || 2 * kx == w { 1 } else { 2 };
+                let copies = half_spectrum_copies(kx, w);
                 let i = ky * hw + kx;
                 sa[rad as usize] += (copies as f64) * a[i] * a[i];
                 sb[rad as usize] += (copies as f64) * b[i].norm_sqr();
