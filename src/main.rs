@@ -265,8 +265,9 @@ enum Command {
         /// Overlap of neighbouring patches in pixels; default: half the patch.
         #[arg(long, allow_negative_numbers = true)]
         overlap: Option<usize>,
-        /// Radius in pixels of the multi-band seam blend, below half the overlap; 0 keeps
-        /// seed 000's hard cut with a 3×3 mean. Default: an eighth of the overlap.
+        /// Radius in pixels of the multi-band seam blend (it reaches up to 4× as far from
+        /// the seam, which must fit inside the overlap); 0 keeps seed 000's hard cut with a
+        /// 3×3 mean. Default: an eighth of the overlap.
         #[arg(long, allow_negative_numbers = true)]
         seam_blend: Option<usize>,
         /// Seed of crop positions and random phases.

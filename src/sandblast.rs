@@ -93,12 +93,13 @@ impl SandblastBuilder {
         self.0.overlap = Some(px);
         self
     }
-    /// Radius in pixels of the multi-band seam blend, below half the overlap; 0 keeps seed
-    /// 000's hard cut (with its 3×3 mean). Default: o/8. The hard cut leaves a step where
-    /// two RPN patches differ by a smooth offset, which on a smooth map (a steep
-    /// spectrum) adds orders of magnitude of mid-frequency power: al3d-1 stitched to
-    /// 1024² has a PSD error of 0.76 with it and 0.28 with the default blend (see
-    /// [`StitchParams::with_blend`]).
+    /// Radius in pixels of the multi-band seam blend; 0 keeps seed 000's hard cut (with
+    /// its 3×3 mean). Default: o/8. The blend reaches up to 4× the radius from the seam
+    /// ([`crate::analysis::stitch::blend_reach`]), and that reach must fit inside the
+    /// overlap. The hard cut leaves a step where two RPN patches differ by a smooth
+    /// offset, which on a smooth map (a steep spectrum) adds orders of magnitude of
+    /// mid-frequency power: al3d-1 stitched to 1024² has a PSD error of 0.76 with it and
+    /// 0.27 with the default blend (see [`StitchParams::with_blend`]).
     pub fn seam_blend(mut self, px: usize) -> Self {
         self.0.seam_blend = Some(px);
         self

@@ -50,21 +50,31 @@ impl StitchParams {
         })
     }
 
-    /// Two-band seams (0, the default, is seed 000's hard cut): below the scale of a box
-    /// of radius `radius` px applied three times (a Gaussian of σ ≈ `radius`), the old
-    /// and new patch are cross-faded by the blurred cut mask; above it they are cut as
-    /// before. The cut alone leaves a step wherever two patches differ by a smooth
-    /// offset, which on a map with a steep spectrum (a polished or smooth form) adds
-    /// orders of magnitude of mid-frequency power; the cross-fade spreads that offset over
-    /// ±2σ. Refused unless 2·radius < o (the fade must stay inside the overlap).
+    /// Multi-band seams (0, the default, is seed 000's hard cut): the difference between
+    /// new and old patch is split into bands by a Gaussian pyramid down to a scale of
+    /// about `radius` px; the finest band stays cut along the path, each coarser band is
+    /// cross-faded by the cut mask blurred at its own scale (Burt and Adelson 1983). The
+    /// cut alone leaves a step wherever two patches differ by a smooth offset, which on a
+    /// map with a steep spectrum (a polished or smooth form) adds orders of magnitude of
+    /// mid-frequency power.
+    ///
+    /// The fade reaches [`blend_reach`]`(radius)` px from the cut. Pixels beyond the
+    /// overlap's outer edge belong to patches already placed and cannot be faded, so the
+    /// paths keep that far from it: a cut nearer would leave the fade's remainder as a
+    /// step along the edge. Refused unless the reach is below the overlap.
     pub fn with_blend(mut self, radius: usize) -> Result<StitchParams> {
-        if radius > 0 && 2 * radius >= self.overlap {
+        // The paths need a column at least reach + 1 px from the outer edge.
+        let fits = |r: usize| blend_reach(r) + 1 < self.overlap;
+        if radius > 0 && !fits(radius) {
+            let most = (1..self.overlap)
+                .take_while(|&r| fits(r))
+                .last()
+                .unwrap_or(0);
             return Err(Error::param(
                 "seam-blend",
                 radius,
                 format!(
-                    "a radius of at most {} px, below half the {} px overlap (0: hard cuts)",
-                    (self.overlap - 1) / 2,
+                    "a radius of at most {most} px: the blend reaches 4·2^⌊log₂ r⌋ px from the seam, which must stay inside the {} px overlap (0: hard cuts)",
                     self.overlap
                 ),
             ));
@@ -92,6 +102,18 @@ impl StitchParams {
     pub fn count(&self, n: usize) -> usize {
         let step = self.patch - self.overlap;
         n.saturating_sub(self.overlap).div_ceil(step).max(1)
+    }
+}
+
+/// How far from the cut, in pixels, the multi-band blend of radius `radius` may change
+/// anything: 2^(⌊log₂ radius⌋ + 2), four samples of the pyramid's coarsest level (its
+/// binomial footprint and the linear expansion back to full size); pixels further away
+/// keep the cut's value. 0 for a hard cut.
+pub fn blend_reach(radius: usize) -> usize {
+    if radius == 0 {
+        0
+    } else {
+        1 << (radius.ilog2() + 2)
     }
 }
 
@@ -123,6 +145,14 @@ pub fn stitch(
     let (nx, ny) = (params.count(width), params.count(height));
     let (cw, chh) = (step * nx + o, step * ny + o);
     let c = channels;
+    // Paths keep the blend's reach from the overlap's outer edge (row 0 of the top strip,
+    // column 0 of the left one): beyond it lie pixels of patches already placed, which
+    // the fade cannot change.
+    let margin = if params.blend > 0 {
+        blend_reach(params.blend) + 1
+    } else {
+        0
+    };
     let mut canvas = vec![0.0f32; cw * chh * c];
     // The horizontal path of the previous patch in this row, in its local columns.
     let mut prev_h: Option<Vec<usize>> = None;
@@ -170,11 +200,12 @@ pub fn stitch(
                         let mut err = vec![0.0; (p - o) * o];
                         for x in o..p {
                             for r in 0..o {
-                                err[(x - o) * o + r] = if x == o && r.abs_diff(start) > 1 {
-                                    f64::INFINITY
-                                } else {
-                                    err_of(&pt, x, r)
-                                };
+                                err[(x - o) * o + r] =
+                                    if r < margin || (x == o && r.abs_diff(start) > 1) {
+                                        f64::INFINITY
+                                    } else {
+                                        err_of(&pt, x, r)
+                                    };
                             }
                         }
                         path.extend(min_cut_vertical(&err, o, p - o));
@@ -184,7 +215,11 @@ pub fn stitch(
                         let mut err = vec![0.0; p * o];
                         for x in 0..p {
                             for r in 0..o {
-                                err[x * o + r] = err_of(&pt, x, r);
+                                err[x * o + r] = if r < margin {
+                                    f64::INFINITY
+                                } else {
+                                    err_of(&pt, x, r)
+                                };
                             }
                         }
                         min_cut_vertical(&err, o, p)
@@ -195,7 +230,11 @@ pub fn stitch(
                 let mut err = vec![0.0; p * o];
                 for y in 0..p {
                     for x in 0..o {
-                        err[y * o + x] = err_of(&pt, x, y);
+                        err[y * o + x] = if x < margin {
+                            f64::INFINITY
+                        } else {
+                            err_of(&pt, x, y)
+                        };
                     }
                 }
                 match &h {
@@ -684,24 +723,71 @@ mod tests {
         );
     }
 
+    /// A 20 px overlap holds a blend of radius 7 (reach 16, the path from column 17) but
+    /// not 8 (reach 32).
     #[test]
-    fn a_blend_radius_not_below_half_the_overlap_is_refused() {
+    fn a_blend_reaching_past_the_overlap_is_refused() {
         let e = StitchParams::new(64, 20)
             .unwrap()
-            .with_blend(10)
+            .with_blend(8)
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("seam-blend") && e.contains("at most 9 px"),
+            e.contains("seam-blend") && e.contains("at most 7 px"),
             "{e}"
         );
         assert_eq!(
             StitchParams::new(64, 20)
                 .unwrap()
-                .with_blend(9)
+                .with_blend(7)
                 .unwrap()
                 .blend(),
-            9
+            7
         );
+    }
+
+    /// The old patch is 0, the new one differs from it least at the overlap's outer edge
+    /// (new − old = 0.5 + 0.5·x/o), so the least-error cut hugs that edge. A hard cut
+    /// there leaves the whole offset as a step along the edge (≥ 0.45 over 5 px: the check
+    /// that the set-up does what it says). Blended, the path keeps the blend's reach from
+    /// the edge, so the pixels either side of the edge keep the old patch's 0 (to 1e-6),
+    /// and the offset becomes a ramp with no step between neighbours above 0.2. Before the
+    /// path kept that margin, the fade's remainder stood as a step along the edge, where
+    /// the pixels of placed patches cannot fade.
+    #[test]
+    fn blended_seams_leave_no_step_at_the_overlaps_edge() {
+        let (p, o) = (64, 32);
+        let edge = p - o;
+        let run = |blend: usize| -> Vec<f32> {
+            let params = StitchParams::new(p, o).unwrap().with_blend(blend).unwrap();
+            let out = stitch(2 * p - o, p, 1, params, |i, _, _| {
+                Ok((0..p * p)
+                    .map(|k| {
+                        let x = k % p;
+                        if i == 0 {
+                            0.0
+                        } else {
+                            0.5 + 0.5 * x.min(o) as f32 / o as f32
+                        }
+                    })
+                    .collect())
+            })
+            .unwrap();
+            out.data[(p / 2) * out.width..(p / 2 + 1) * out.width].to_vec()
+        };
+        let cut = run(0);
+        let at_edge = (cut[edge + 2] - cut[edge - 3]).abs();
+        assert!(at_edge >= 0.45, "hard cut: {:?}", &cut[edge - 3..edge + 3]);
+        let blended = run(4);
+        assert!(
+            blended[edge - 3..edge + 3].iter().all(|v| v.abs() < 1e-6),
+            "blended: the edge moved: {:?}",
+            &blended[edge - 3..edge + 3]
+        );
+        let step = blended
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f32::max);
+        assert!(step <= 0.2, "blended: largest step {step}");
     }
 }
