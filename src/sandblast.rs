@@ -99,7 +99,7 @@ impl SandblastBuilder {
     /// overlap. The hard cut leaves a step where two RPN patches differ by a smooth
     /// offset, which on a smooth map (a steep spectrum) adds orders of magnitude of
     /// mid-frequency power: al3d-1 stitched to 1024² has a PSD error of 0.76 with it and
-    /// 0.27 with the default blend (see [`StitchParams::with_blend`]).
+    /// 0.265 with the default blend (see [`StitchParams::with_blend`]).
     pub fn seam_blend(mut self, px: usize) -> Self {
         self.0.seam_blend = Some(px);
         self

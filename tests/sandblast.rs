@@ -108,7 +108,7 @@ fn padded_rpn_repeats_and_stitching_does_not() {
 /// 1024² from 200 px patches. Seed 000's hard cut leaves a step wherever two RPN patches
 /// differ by a smooth offset; the default multi-band seam blend keeps the PSD error
 /// under the map's bar, 1.2× its top/bottom self-difference of 0.295 = 0.354 (measured:
-/// 0.28 blended, 0.76 hard-cut), and the hard cut is refused by it.
+/// 0.265 blended, 0.76 hard-cut), and the hard cut is refused by it.
 #[test]
 fn blended_seams_keep_a_smooth_maps_spectrum() {
     let al3d = read_image(&data("tests/data/al3d-1.npy"), &ReadOptions::default()).unwrap();

@@ -245,23 +245,37 @@ pub fn stitch(
             let new = |x: usize, y: usize| {
                 v.as_ref().is_none_or(|v| x >= v[y]) && h.as_ref().is_none_or(|h| y >= h[x])
             };
+            // The fade, `fw` columns wide: the patch, and past its right edge, beside the
+            // top strip, `pad` columns of a patch already placed (row j − 1). The
+            // horizontal cut runs out through the patch's right edge, and its fade must go
+            // on past it, or what it changed inside would stand as a step along the
+            // edge. Out there the mask repeats the patch's last column and the difference
+            // is the pyramid's extrapolation of the known one.
+            let pad = if params.blend > 0 && j > 0 {
+                margin.min(cw - (x0 + p))
+            } else {
+                0
+            };
+            let fw = p + pad;
             let fade = (params.blend > 0 && (i > 0 || j > 0)).then(|| {
-                let mut diff = vec![0.0f32; p * p * c];
+                let mut diff = vec![0.0f32; fw * p * c];
                 for y in 0..p {
                     for x in 0..p {
                         if in_omega(x, y) {
                             let (a, b) = (at(x, y), (y * p + x) * c);
                             for k in 0..c {
-                                diff[b + k] = pt[b + k] - canvas[a + k];
+                                diff[(y * fw + x) * c + k] = pt[b + k] - canvas[a + k];
                             }
                         }
                     }
                 }
-                let mask: Vec<f32> = (0..p * p).map(|k| new(k % p, k / p) as u8 as f32).collect();
-                let known: Vec<f32> = (0..p * p)
-                    .map(|k| in_omega(k % p, k / p) as u8 as f32)
+                let mask: Vec<f32> = (0..fw * p)
+                    .map(|k| new((k % fw).min(p - 1), k / fw) as u8 as f32)
                     .collect();
-                seam_blend(&diff, &mask, &known, p, c, params.blend)
+                let known: Vec<f32> = (0..fw * p)
+                    .map(|k| (k % fw < p && in_omega(k % fw, k / fw)) as u8 as f32)
+                    .collect();
+                seam_blend(&diff, &mask, &known, (fw, p), c, params.blend)
             });
             for y in 0..p {
                 for x in 0..p {
@@ -271,7 +285,23 @@ pub fn stitch(
                     }
                     if let Some(corr) = &fade {
                         for k in 0..c {
-                            canvas[a + k] += corr[b + k];
+                            canvas[a + k] += corr[(y * fw + x) * c + k];
+                        }
+                    }
+                }
+            }
+            // Beside the top strip, above the cut's continuation: those pixels stay old.
+            // Below it they stand for the new patch, which does not reach there; the next
+            // patch in the row covers them. Lower down, nothing is placed yet.
+            if let Some(corr) = &fade {
+                for y in 0..o {
+                    if new(p - 1, y) {
+                        continue;
+                    }
+                    for x in p..fw {
+                        let a = at(x, y);
+                        for k in 0..c {
+                            canvas[a + k] += corr[(y * fw + x) * c + k];
                         }
                     }
                 }
@@ -347,7 +377,7 @@ fn vertical_joining(err: &[f64], o: usize, p: usize, h: &[usize]) -> Vec<usize> 
     v
 }
 
-/// Multi-band seam blending (Burt and Adelson 1983) of one `p × p × c` patch: `diff` is
+/// Multi-band seam blending (Burt and Adelson 1983) of one `width × height × c` rectangle: `diff` is
 /// new − old where `known` is 1 (the overlap Ω) and 0 elsewhere, `mask` the cut (1 = new).
 /// Returns Δ, to add to the cut image: below the finest scale the seam stays cut; each
 /// coarser band of the difference, down to a scale of about `radius` px, is cross-faded
@@ -362,14 +392,14 @@ fn seam_blend(
     diff: &[f32],
     mask: &[f32],
     known: &[f32],
-    p: usize,
+    (width, height): (usize, usize),
     c: usize,
     radius: usize,
 ) -> Vec<f32> {
     let levels = (usize::BITS - 1 - radius.leading_zeros()) as usize; // ⌊log₂ r⌋
     // Pyramids, level 0 first: sizes, reduced diff·known (diff is already 0 off Ω), known,
     // mask.
-    let mut sizes = vec![(p, p)];
+    let mut sizes = vec![(width, height)];
     let mut dk = vec![diff.to_vec()];
     let mut kn = vec![known.to_vec()];
     let mut mk = vec![mask.to_vec()];
@@ -677,7 +707,7 @@ mod tests {
         };
         let noise: Vec<f32> = (0..p * p).map(|_| rnd()).collect();
         let (diff, mask, known) = vertical_case(p, o, cut, |x, y| noise[y * p + x]);
-        let delta = seam_blend(&diff, &mask, &known, p, 1, radius);
+        let delta = seam_blend(&diff, &mask, &known, (p, p), 1, radius);
         let reach = 1usize << (2 + 2); // levels = ⌊log₂ 4⌋ = 2
         let mut near = 0.0f32;
         for y in 0..p {
@@ -704,7 +734,7 @@ mod tests {
     fn a_smooth_offset_becomes_a_ramp() {
         let (p, o, cut) = (96, 48, 24);
         let (diff, mask, known) = vertical_case(p, o, cut, |_, _| 1.0);
-        let delta = seam_blend(&diff, &mask, &known, p, 1, 8);
+        let delta = seam_blend(&diff, &mask, &known, (p, p), 1, 8);
         let out: Vec<f32> = mask.iter().zip(&delta).map(|(m, d)| m + d).collect();
         let y = p / 2;
         let row = &out[y * p..(y + 1) * p];
@@ -720,6 +750,44 @@ mod tests {
         assert!(
             row.iter().all(|v| (-1e-5..=1.0 + 1e-5).contains(v)),
             "{row:?}"
+        );
+    }
+
+    /// Two rows of two patches, the upper row 0 and the lower 1, so the only offset is
+    /// across the horizontal seams. The horizontal cut of patch (0, 1) runs out through
+    /// its right edge, beside patch (1, 0), already placed: its fade goes on past that
+    /// edge, and nowhere in the result do neighbours differ by more than 0.2 (the blend's
+    /// ramp). Before the fade went past the edge, what it changed inside stood as a step
+    /// of up to half the offset along it.
+    #[test]
+    fn a_horizontal_seams_fade_goes_on_past_the_patchs_right_edge() {
+        let (p, o) = (64, 32);
+        let params = StitchParams::new(p, o).unwrap().with_blend(4).unwrap();
+        let out = stitch(2 * p - o, 2 * p - o, 1, params, |_, j, _| {
+            Ok(vec![j as f32; p * p])
+        })
+        .unwrap();
+        let (w, h) = (out.width, out.height);
+        let mut worst = (0.0f32, 0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                let v = out.data[y * w + x];
+                for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                    if nx < w && ny < h {
+                        let d = (out.data[ny * w + nx] - v).abs();
+                        if d > worst.0 {
+                            worst = (d, x, y);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            worst.0 <= 0.2,
+            "a step of {} at ({}, {})",
+            worst.0,
+            worst.1,
+            worst.2
         );
     }
 
