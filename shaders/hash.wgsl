@@ -62,8 +62,13 @@ fn pick_tile(h: u32, k: u32) -> u32 {
     return ((h >> 16u) * k) >> 16u;
 }
 
-// ⌊v / d⌋ for d > 0, rounding toward −∞ (WGSL's `/` truncates).
+// ⌊v / d⌋ for d > 0, rounding toward −∞ (WGSL's `/` truncates). Only non-negative
+// operands are divided: GLSL leaves `/` and `%` of negative integers undefined, and the
+// GL backend's translation gave wrong cells for negative v (oblique lattices on Mesa's
+// llvmpipe). For v < 0, ⌊v/d⌋ = −(⌊(−v − 1)/d⌋ + 1), which cannot overflow.
 fn div_floor(v: i32, d: i32) -> i32 {
-    let q = v / d;
-    return select(q, q - 1, (v % d) != 0 && v < 0);
+    if v >= 0 {
+        return v / d;
+    }
+    return -((-(v + 1)) / d + 1);
 }
