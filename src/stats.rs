@@ -347,7 +347,7 @@ pub fn wasserstein1_sorted(a: &[f64], b: &[f64]) -> f64 {
 /// window), averaged over up to `max_windows` non-overlapping windows. Returns the mean
 /// power per integer radius 0..=n/2 and the number of frequencies per radius in one
 /// window.
-pub fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>) {
+fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>) {
     let hann: Vec<f64> = (0..n).map(|i| crate::analysis::taper::hann(i, n)).collect();
     // Half spectra (real FFTs): each column that stands for its mirror image too counts
     // twice. Each frequency's radius bin and weight, once for every window.

@@ -61,7 +61,10 @@ impl StitchParams {
     /// The fade reaches [`blend_reach`]`(radius)` px from the cut. Pixels beyond the
     /// overlap's outer edge belong to patches already placed and cannot be faded, so the
     /// paths keep that far from it: a cut nearer would leave the fade's remainder as a
-    /// step along the edge. Refused unless the reach is below the overlap.
+    /// step along the edge. Refused unless the overlap leaves them room: reach + 1 < o.
+    /// A lower row's horizontal cut runs out through the patch's right edge; there the
+    /// fade goes on over the placed pixels beside the top strip, above the cut's
+    /// continuation.
     pub fn with_blend(mut self, radius: usize) -> Result<StitchParams> {
         // The paths need a column at least reach + 1 px from the outer edge.
         let fits = |r: usize| blend_reach(r) + 1 < self.overlap;
@@ -377,8 +380,9 @@ fn vertical_joining(err: &[f64], o: usize, p: usize, h: &[usize]) -> Vec<usize> 
     v
 }
 
-/// Multi-band seam blending (Burt and Adelson 1983) of one `width × height × c` rectangle: `diff` is
-/// new − old where `known` is 1 (the overlap Ω) and 0 elsewhere, `mask` the cut (1 = new).
+/// Multi-band seam blending (Burt and Adelson 1983) of one `width × height × c`
+/// rectangle: `diff` is new − old where `known` is 1 (the overlap Ω) and 0 elsewhere,
+/// `mask` the cut (1 = new).
 /// Returns Δ, to add to the cut image: below the finest scale the seam stays cut; each
 /// coarser band of the difference, down to a scale of about `radius` px, is cross-faded
 /// by the mask's Gaussian-pyramid level of the same scale.
@@ -758,7 +762,7 @@ mod tests {
     /// its right edge, beside patch (1, 0), already placed: its fade goes on past that
     /// edge, and nowhere in the result do neighbours differ by more than 0.2 (the blend's
     /// ramp). Before the fade went past the edge, what it changed inside stood as a step
-    /// of up to half the offset along it.
+    /// along it (0.29 here).
     #[test]
     fn a_horizontal_seams_fade_goes_on_past_the_patchs_right_edge() {
         let (p, o) = (64, 32);
