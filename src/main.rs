@@ -280,6 +280,11 @@ enum Command {
         /// modulus as nearly as it can (IAAFT), before stitching.
         #[arg(long)]
         match_histogram: bool,
+        /// How crops are made periodic before RPN: main-lobe keeps the measured power at
+        /// every frequency the Hann window resolves and gives a form's variance back at
+        /// the longest wavelengths; hann scales every frequency alike.
+        #[arg(long, value_enum, default_value_t = Taper::MainLobe)]
+        taper: Taper,
         /// Fill missing (NaN) points smoothly instead of refusing the measurement.
         #[arg(long)]
         fill_missing: bool,
@@ -1050,12 +1055,14 @@ fn run(command: Command) -> Result<()> {
             seed,
             padded,
             match_histogram,
+            taper,
             fill_missing,
             raw_shape,
         } => {
             let mut b = Sandblast::builder(w, h)
                 .seed(seed)
                 .padded(padded)
+                .taper(taper)
                 .match_histogram(match_histogram)
                 .fill_missing(fill_missing);
             if let Some(s) = spacing {
