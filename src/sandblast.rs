@@ -272,7 +272,7 @@ impl Sandblast {
                 (ds, Some(t))
             }
         };
-        if let Some(note) = stationarity_note(&exemplar.channel(0), source) {
+        if let Some(note) = stationarity_note(&exemplar.channel(0), source, self.taper) {
             progress(&note);
         }
         let (ew, eh, c) = (exemplar.width, exemplar.height, exemplar.channels);
@@ -396,19 +396,35 @@ pub const NONSTATIONARY_LOG10: f64 = crate::stats::PSD_ERROR_BAR;
 
 /// A note for the progress lines when `heights` (one channel) is too far from
 /// stationary for a stationary synthesis to match both its height distribution and its
-/// spectrum within the foundation's thresholds, or None.
-pub fn stationarity_note(heights: &Raster, source: &str) -> Option<String> {
+/// spectrum within the foundation's thresholds, or None. What it costs depends on where
+/// the variance sits and on the `taper`: variance in the middle (a crater, a dome) puts
+/// the spectrum's level off by about |log10 r| at every frequency; variance at the
+/// borders (a form) does too with [`Taper::Hann`], while [`Taper::MainLobe`] gives it back
+/// at the longest wavelengths and keeps the fine spectrum and the height spread, though
+/// not the form's shape.
+pub fn stationarity_note(heights: &Raster, source: &str, taper: Taper) -> Option<String> {
     let r = windowed_variance_ratio(heights);
     (r.is_finite() && r.log10().abs() > NONSTATIONARY_LOG10).then(|| {
-        format!(
-            "note: {source} is not stationary: its Hann-windowed spectrum implies {r:.2}× its height variance ({}); a stationary synthesis matches its heights or its spectrum, not both (with its variance, a PSD error of about {:.2})",
-            if r > 1.0 {
-                "the variance sits in the middle: a crater, a dome, a central feature"
-            } else {
-                "the variance sits at the borders: a bowl, a part's edge, form left after levelling"
-            },
+        let head = format!(
+            "note: {source} is not stationary: its Hann-windowed spectrum implies {r:.2}× its height variance"
+        );
+        let level_off = format!(
+            "a stationary synthesis matches its heights or its spectrum, not both (with its variance, a PSD error of about {:.2})",
             r.log10().abs()
-        )
+        );
+        if r > 1.0 {
+            format!(
+                "{head} (the variance sits in the middle: a crater, a dome, a central feature); {level_off}"
+            )
+        } else if taper == Taper::MainLobe {
+            format!(
+                "{head} (the variance sits at the borders: a bowl, a part's edge, form left after levelling); the main-lobe taper gives it back at the longest wavelengths, keeping the fine spectrum and the height spread but not the form's shape"
+            )
+        } else {
+            format!(
+                "{head} (the variance sits at the borders: a bowl, a part's edge, form left after levelling); {level_off}"
+            )
+        }
     })
 }
 

@@ -383,7 +383,8 @@ fn a_map_that_is_not_stationary_is_noted_with_the_psd_error_it_costs() {
 /// squared step between horizontal neighbours — 2σ² = 1/6 for the roughness alone, the
 /// bowl's waves in the output adding next to nothing — is within 15% of the roughness's;
 /// with the bake's variance-kept Hann taper, which scales every frequency by the bowl's
-/// share of the variance, it is over 1.4× (measured: 1.01 and 2.27).
+/// share of the variance, it is over 1.4× (measured: 1.01 and 2.27). The progress note
+/// on stationarity says so.
 #[test]
 fn a_forms_variance_is_not_spread_over_the_roughness() {
     let n = 256;
@@ -421,17 +422,35 @@ fn a_forms_variance_is_not_spread_over_the_roughness() {
     };
     let roughness = 2.0 / 12.0;
     let run = |taper: Taper| {
+        let mut lines = Vec::new();
         let out = Sandblast::builder(640, 640)
             .seed(2)
             .taper(taper)
             .build()
             .unwrap()
-            .run(&image(bowl.clone()), "bowl", &mut |_| {})
+            .run(&image(bowl.clone()), "bowl", &mut |l| {
+                lines.push(l.to_string())
+            })
             .unwrap();
         assert!(matches!(out.how, Route::Stitched { .. }));
-        mean_sq_step(&out.raster) / roughness
+        let note = lines.into_iter().find(|l| l.starts_with("note:"));
+        (
+            mean_sq_step(&out.raster) / roughness,
+            note.unwrap_or_default(),
+        )
     };
-    let (main_lobe, hann) = (run(Taper::MainLobe), run(Taper::Hann));
+    let ((main_lobe, note_main_lobe), (hann, note_hann)) = (run(Taper::MainLobe), run(Taper::Hann));
+    // The note says where the variance sits, and what it costs with each taper.
+    assert!(
+        note_main_lobe.contains("at the borders")
+            && note_main_lobe.contains("longest wavelengths")
+            && !note_main_lobe.contains("PSD error"),
+        "{note_main_lobe}"
+    );
+    assert!(
+        note_hann.contains("at the borders") && note_hann.contains("PSD error"),
+        "{note_hann}"
+    );
     println!("mean squared step / the roughness's: main lobe {main_lobe:.3}, hann {hann:.3}");
     assert!((main_lobe - 1.0).abs() < 0.15, "main lobe: {main_lobe:.3}");
     assert!(hann > 1.4, "hann: {hann:.3}");
