@@ -62,7 +62,7 @@ pub enum Taper {
     /// The same Hann window at its Welch gain, so every frequency the window resolves
     /// keeps the crop's windowed power unscaled, with the variance the window took from
     /// a form given back in its main lobe (at most two cycles per crop). The sandblast
-    /// pipeline's default: on maps with a form (a bowl, a tilted part, a central pit),
+    /// pipeline's default: on maps whose variance lies in a form (a bowl, a tilted part),
     /// hann scales the fine roughness by the form's share of the variance. Not the
     /// bake's: on al3d-1's small tiles it takes the bank's PSD error from 0.277 to
     /// 0.368, over that map's bar of 0.354.

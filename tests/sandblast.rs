@@ -378,8 +378,8 @@ fn a_map_that_is_not_stationary_is_noted_with_the_psd_error_it_costs() {
 }
 
 /// A measurement whose variance is mostly a form: white roughness (variance 1/12) on a
-/// flat-bottomed bowl whose walls rise at the edges (x⁶ + y⁶, 10× the roughness's
-/// variance), 256², stitched to 640². With the default main-lobe taper the output's mean
+/// flat-bottomed bowl whose walls rise at the edges (10·(x⁶ + y⁶) on [−1, 1]²: over 100×
+/// the roughness's variance), 256², stitched to 640². With the default main-lobe taper the output's mean
 /// squared step between horizontal neighbours — 2σ² = 1/6 for the roughness alone, the
 /// bowl's waves in the output adding next to nothing — is within 15% of the roughness's;
 /// with the bake's variance-kept Hann taper, which scales every frequency by the bowl's

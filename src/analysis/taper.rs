@@ -177,13 +177,13 @@ mod tests {
     #[test]
     fn main_lobe_taper_keeps_mean_and_variance() {
         let (bowl, _) = bowl_over_noise(64, 48, 20.0, 1);
-        let (noise, _) = bowl_over_noise(37, 22, 0.0, 2);
+        let (_, noise) = bowl_over_noise(37, 22, 0.0, 2);
         let centred: Vec<f64> = noise
             .iter()
             .enumerate()
             .map(|(i, v)| {
                 let (x, y) = ((i % 37) as f64 - 18.0, (i / 37) as f64 - 10.5);
-                v * (1.0 + 4.0 * (-(x * x + y * y) / 40.0).exp())
+                7.0 + v * (1.0 + 4.0 * (-(x * x + y * y) / 40.0).exp())
             })
             .collect();
         for (name, plane, w, h) in [
@@ -244,8 +244,9 @@ mod tests {
     }
 
     /// A crop whose variance is mostly a bowl: the main-lobe taper keeps the roughness's
-    /// power (white, so flat) at every frequency above the form to 10%; the
-    /// variance-kept Hann taper multiplies it by the bowl's share, over 1.5×.
+    /// power (white, so flat), averaged over the frequencies above 8 cycles per crop on
+    /// either axis, to 10%; the variance-kept Hann taper multiplies it by the bowl's
+    /// share, over 1.5× (measured: 0.994 and 2.26).
     #[test]
     fn main_lobe_taper_gives_a_formed_crops_roughness_its_measured_power() {
         use crate::fft::{Fft2, forward_real};
