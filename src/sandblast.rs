@@ -315,11 +315,28 @@ impl Sandblast {
         let crop_of = |x0: usize, y0: usize, pw: usize, ph: usize| {
             self.taper.crops(&planes_in, ew, [x0, y0, pw, ph])
         };
+        // Settings only stitching reads, named where the route does not stitch.
+        let unused = [
+            ("patch", self.patch.is_some()),
+            ("overlap", self.overlap.is_some()),
+            ("seam-blend", self.seam_blend.is_some()),
+        ]
+        .iter()
+        .filter(|(_, set)| *set)
+        .map(|(name, _)| *name)
+        .collect::<Vec<_>>()
+        .join(", ");
+        let note_unused = |progress: &mut dyn FnMut(&str), route: &str| {
+            if !unused.is_empty() {
+                progress(&format!("note: {unused} unused: {route} does not stitch"));
+            }
+        };
         let (planes, how) = if ew >= w && eh >= h {
             let (x0, y0) = (rng.random_range(0..=ew - w), rng.random_range(0..=eh - h));
             progress(&format!(
                 "the exemplar ({ew}×{eh}) covers {w}×{h}: crop at ({x0}, {y0}), RPN"
             ));
+            note_unused(progress, "a crop of the measurement");
             let planes = finish(
                 random_phase_noise(&crop_of(x0, y0, w, h), w, h, &mut rng),
                 w,
@@ -330,6 +347,7 @@ impl Sandblast {
             progress(&format!(
                 "padded RPN: {ew}×{eh} scaled and padded to {w}×{h} with a sigmoid border"
             ));
+            note_unused(progress, "padded RPN");
             let padded: Vec<Vec<f64>> = planes_in.iter().map(|p| pad(p, ew, eh, w, h)).collect();
             let planes = finish(random_phase_noise(&padded, w, h, &mut rng), w, h);
             (interleave(&planes, w, h)?, Route::Padded)

@@ -262,7 +262,8 @@ fn bad_input_is_refused_with_what_is_expected() {
 /// The pipeline's routes: a target the measurement covers is one crop + RPN; a larger
 /// one is stitched; a coarser spacing down-samples first (0.039 µm from di-6's 0.0195:
 /// 256² left, so 300² is stitched from 256 px patches). Heights stay finite and keep
-/// the measurement's spread within a factor of 1.5.
+/// the measurement's spread within a factor of 1.5. Patch, overlap and seam-blend
+/// settings on a route that does not stitch get a note saying so.
 #[test]
 fn the_pipeline_takes_the_route_seed_000_describes() {
     let di6 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
@@ -293,6 +294,29 @@ fn the_pipeline_takes_the_route_seed_000_describes() {
         assert!(b > a / 1.5 && b < a * 1.5, "Sq {b} vs exemplar {a}");
     }
     let _ = Acf::new(&big.raster);
+    // Stitching settings on a route that does not stitch are named as unused, and only
+    // then.
+    let notes = |b: surftile::sandblast::SandblastBuilder| {
+        let mut lines = Vec::new();
+        b.build()
+            .unwrap()
+            .run(&di6, "di-6", &mut |l| lines.push(l.to_string()))
+            .unwrap();
+        lines
+            .into_iter()
+            .filter(|l| l.contains("unused"))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        notes(Sandblast::builder(200, 150).patch(64).seam_blend(2)),
+        ["note: patch, seam-blend unused: a crop of the measurement does not stitch"]
+    );
+    assert_eq!(
+        notes(Sandblast::builder(600, 600).padded(true).overlap(8)),
+        ["note: overlap unused: padded RPN does not stitch"]
+    );
+    assert!(notes(Sandblast::builder(200, 150)).is_empty());
+    assert!(notes(Sandblast::builder(600, 600).patch(128)).is_empty());
 }
 
 /// A measurement whose variance sits in one place gets a progress note, and the note's
