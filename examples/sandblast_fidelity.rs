@@ -22,7 +22,7 @@ use surftile::bake::Taper;
 use surftile::io::{ReadOptions, read_image};
 use surftile::sandblast::Sandblast;
 use surftile::stats::{
-    PSD_ERROR_BAR, W1_BAR, psd_error, wasserstein1_standardised, windowed_variance_ratio,
+    fidelity_bars, psd_error, wasserstein1_standardised, windowed_variance_ratio,
 };
 
 #[derive(Parser)]
@@ -63,15 +63,13 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
     let mut synth = out.raster.clone();
     level_plane(&mut synth);
     let ex = &out.exemplar;
-    let (w, h) = (ex.width, ex.height);
-    let top = ex.crop(0, 0, w, h / 2).map_err(|e| e.to_string())?;
-    let bottom = ex.crop(0, h / 2, w, h - h / 2).map_err(|e| e.to_string())?;
+    let bars = fidelity_bars(ex);
     Ok((
         windowed_variance_ratio(&ex.channel(0)),
         wasserstein1_standardised(ex, &synth),
-        W1_BAR.max(1.2 * wasserstein1_standardised(&top, &bottom)),
+        bars.w1,
         psd_error(ex, &synth),
-        PSD_ERROR_BAR.max(1.2 * psd_error(&top, &bottom)),
+        bars.psd,
         format!("{:?}", out.how),
     ))
 }

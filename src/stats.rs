@@ -447,6 +447,45 @@ pub fn psd_slope(r: &Raster, window: usize, (k_lo, k_hi): (f64, f64)) -> f64 {
     sxy / sxx
 }
 
+/// The foundation issue's fidelity bars for a synthesis of `exemplar`: a small or uneven
+/// map can differ from itself by more than [`W1_BAR`] and [`PSD_ERROR_BAR`], so its top
+/// half is compared with its bottom half by the same figures, and where that
+/// self-difference is larger the bar is 1.2× it.
+#[derive(Clone, Copy, Debug)]
+pub struct FidelityBars {
+    /// W1 between the exemplar's top and bottom halves (NaN under 2 rows).
+    pub w1_self: f64,
+    /// PSD error between the exemplar's top and bottom halves (NaN under 2 rows).
+    pub psd_self: f64,
+    /// The bar on the standardised height-histogram W1.
+    pub w1: f64,
+    /// The bar on the PSD error.
+    pub psd: f64,
+}
+
+/// [`FidelityBars`] of one exemplar.
+pub fn fidelity_bars(exemplar: &Raster) -> FidelityBars {
+    let (w, h) = (exemplar.width, exemplar.height);
+    let halves = (
+        exemplar.crop(0, 0, w, h / 2),
+        exemplar.crop(0, h / 2, w, h - h / 2),
+    );
+    let (w1_self, psd_self) = match halves {
+        (Ok(top), Ok(bottom)) if h >= 2 => (
+            wasserstein1_standardised(&top, &bottom),
+            psd_error(&top, &bottom),
+        ),
+        _ => (f64::NAN, f64::NAN),
+    };
+    FidelityBars {
+        w1_self,
+        psd_self,
+        // f64::max takes the floor where the self-difference is NaN.
+        w1: W1_BAR.max(1.2 * w1_self),
+        psd: PSD_ERROR_BAR.max(1.2 * psd_self),
+    }
+}
+
 /// PSD error (DESIGN.md): on equal-size square windows of a and b (side = the smallest
 /// side of either), radially average the power spectra, merge low-frequency bins until
 /// each holds ≥ 32 samples, and take the RMS over bins of log10 P_b − log10 P_a.
@@ -706,6 +745,32 @@ mod tests {
                 "{w}×{h}: {got} vs {expected}"
             );
         }
+    }
+
+    /// Fidelity bars: a map whose halves are alike keeps the foundation's floors; one
+    /// whose halves differ gets 1.2× the difference; a one-row map (no halves) the floors.
+    #[test]
+    fn fidelity_bars_are_the_floor_or_the_maps_own_difference() {
+        let texture = |x: usize, y: usize| ((x * 7919 + (y % 32) * 104_729) % 101) as f64;
+        let alike = fidelity_bars(&raster(64, 64, texture));
+        assert_eq!((alike.w1_self, alike.psd_self), (0.0, 0.0));
+        assert_eq!((alike.w1, alike.psd), (W1_BAR, PSD_ERROR_BAR));
+        // The bottom half ten times as smooth in its fine detail, and shifted in height.
+        let uneven = fidelity_bars(&raster(64, 64, |x, y| {
+            if y < 32 {
+                texture(x, y)
+            } else {
+                0.1 * texture(x, y) + 0.05 * x as f64
+            }
+        }));
+        assert!(uneven.w1_self > W1_BAR && uneven.psd_self > PSD_ERROR_BAR);
+        assert_eq!(
+            (uneven.w1, uneven.psd),
+            (1.2 * uneven.w1_self, 1.2 * uneven.psd_self)
+        );
+        let row = fidelity_bars(&raster(64, 1, texture));
+        assert!(row.w1_self.is_nan() && row.psd_self.is_nan());
+        assert_eq!((row.w1, row.psd), (W1_BAR, PSD_ERROR_BAR));
     }
 
     /// radial_psd through half spectra against a slow twin that bins every frequency of

@@ -12,11 +12,11 @@ use surftile::Raster;
 use surftile::analysis::level::level_plane;
 use surftile::bake::Baker;
 use surftile::io::{ReadOptions, read_image, write_heights};
-use surftile::stats::{psd_error, seam_score_by, wasserstein1_standardised};
+use surftile::stats::{
+    FidelityBars, fidelity_bars, psd_error, seam_score_by, wasserstein1_standardised,
+};
 use surftile::stream::{BlendSurface, Region, Surface};
 
-const W1_BAR: f64 = 0.05;
-const PSD_BAR: f64 = 0.15;
 const SEAM_RANGE: (f64, f64) = (0.9, 1.1);
 const SIDE: usize = 1024;
 
@@ -47,12 +47,12 @@ fn check_map(rel: &str) -> Vec<String> {
     let w1 = wasserstein1_standardised(&exemplar, &render);
     let psd = psd_error(&exemplar, &render);
     let (w, h) = (exemplar.width, exemplar.height);
-    let top = exemplar.crop(0, 0, w, h / 2).unwrap();
-    let bottom = exemplar.crop(0, h / 2, w, h - h / 2).unwrap();
-    let w1_self = wasserstein1_standardised(&top, &bottom);
-    let psd_self = psd_error(&top, &bottom);
-    let w1_bar = W1_BAR.max(1.2 * w1_self);
-    let psd_bar = PSD_BAR.max(1.2 * psd_self);
+    let FidelityBars {
+        w1_self,
+        psd_self,
+        w1: w1_bar,
+        psd: psd_bar,
+    } = fidelity_bars(&exemplar);
     println!(
         "{name}: {w}×{h}, tiles {:?}, E = {}: W1 {w1:.4} (self {w1_self:.4}, bar {w1_bar:.4}), \
          PSD error {psd:.4} (self {psd_self:.4}, bar {psd_bar:.4}), seam score {seam:.4}",

@@ -9,20 +9,46 @@ pub(crate) fn hann(i: usize, n: usize) -> f64 {
     0.5 - 0.5 * (2.0 * std::f64::consts::PI * t).cos()
 }
 
+/// A plane's mean, its sum of squared deviations, and its deviations times a separable
+/// Hann window (row-major, `width` wide), with the window's Welch gain: 1 over its rms.
+struct Windowed {
+    mean: f64,
+    sum_sq: f64,
+    deviations: Vec<f64>,
+    welch: f64,
+}
+
+fn hann_windowed(plane: &[f64], width: usize, height: usize) -> Windowed {
+    let n = plane.len().max(1) as f64;
+    let mean = plane.iter().sum::<f64>() / n;
+    let sum_sq = plane.iter().map(|v| (v - mean).powi(2)).sum();
+    let wx: Vec<f64> = (0..width).map(|i| hann(i, width)).collect();
+    let wy: Vec<f64> = (0..height).map(|i| hann(i, height)).collect();
+    let mean_sq = |w: &[f64]| w.iter().map(|a| a * a).sum::<f64>() / w.len().max(1) as f64;
+    let deviations = plane
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (v - mean) * wx[i % width] * wy[i / width])
+        .collect();
+    Windowed {
+        mean,
+        sum_sq,
+        deviations,
+        welch: 1.0 / (mean_sq(&wx) * mean_sq(&wy)).sqrt(),
+    }
+}
+
 /// Tapers a row-major `width × height` plane toward its mean with a separable Hann
 /// window, then rescales the deviations so the variance about the mean is that of the
 /// input. The mean is kept.
 pub fn hann_taper(plane: &[f64], width: usize, height: usize) -> Vec<f64> {
     let n = plane.len().max(1) as f64;
-    let mean = plane.iter().sum::<f64>() / n;
-    let var_in: f64 = plane.iter().map(|v| (v - mean).powi(2)).sum();
-    let wx: Vec<f64> = (0..width).map(|i| hann(i, width)).collect();
-    let wy: Vec<f64> = (0..height).map(|i| hann(i, height)).collect();
-    let mut out: Vec<f64> = plane
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v - mean) * wx[i % width] * wy[i / width])
-        .collect();
+    let Windowed {
+        mean,
+        sum_sq: var_in,
+        deviations: mut out,
+        ..
+    } = hann_windowed(plane, width, height);
     // Keep the mean exactly: the window moves it when the deviations are not uniform.
     let shift = out.iter().sum::<f64>() / n;
     let var_out: f64 = out.iter().map(|v| (v - shift).powi(2)).sum();
@@ -61,17 +87,15 @@ pub fn hann_taper_main_lobe(plane: &[f64], width: usize, height: usize) -> Vec<f
     if n == 0 {
         return Vec::new();
     }
-    let mean = plane.iter().sum::<f64>() / n as f64;
-    let var_in: f64 = plane.iter().map(|v| (v - mean).powi(2)).sum();
-    let wx: Vec<f64> = (0..width).map(|i| hann(i, width)).collect();
-    let wy: Vec<f64> = (0..height).map(|i| hann(i, height)).collect();
-    let mean_sq = |w: &[f64]| w.iter().map(|a| a * a).sum::<f64>() / w.len() as f64;
-    let welch = 1.0 / (mean_sq(&wx) * mean_sq(&wy)).sqrt();
-    let windowed: Vec<f64> = plane
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v - mean) * wx[i % width] * wy[i / width] * welch)
-        .collect();
+    let Windowed {
+        mean,
+        sum_sq: var_in,
+        deviations: mut windowed,
+        welch,
+    } = hann_windowed(plane, width, height);
+    for v in &mut windowed {
+        *v *= welch;
+    }
     let mut plan = crate::fft::RealFft2::new(width, height);
     let hw = plan.half_width();
     let mut spec = plan.forward(&windowed);
@@ -126,14 +150,7 @@ mod tests {
             .map(|i| 3.0 + 0.1 * (i % w) as f64 + ((i * 31) % 7) as f64)
             .collect();
         let out = hann_taper(&plane, w, h);
-        let stats = |v: &[f64]| {
-            let m = v.iter().sum::<f64>() / v.len() as f64;
-            (
-                m,
-                v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64,
-            )
-        };
-        let ((m0, v0), (m1, v1)) = (stats(&plane), stats(&out));
+        let ((m0, v0), (m1, v1)) = (mean_var(&plane), mean_var(&out));
         assert!((m0 - m1).abs() < 1e-12 && (v0 - v1).abs() < 1e-9 * v0);
         // The wrap-around jump between the last and first column is small.
         let jump_in: f64 = (0..h)
