@@ -6,8 +6,14 @@
 //!
 //! ```text
 //! cargo run --release --example sandblast_fidelity -- [--side 1024] [--seed 0]
-//!     [--match-histogram] [--taper main-lobe|hann|periodic] MAP.npy ...
+//!     [--match-histogram] [--taper main-lobe|hann|periodic] [--despike K] MAP.npy ...
 //! ```
+//!
+//! `--despike K` is a diagnosis, not part of the pipeline: before measuring, output
+//! pixels further than K of the measurement's standard deviations from its mean are
+//! replaced by the median of their 5×5 neighbourhood, and the line says how many there
+//! were, per million pixels, beside the measurement's own count. It shows how much of a
+//! PSD error a handful of single-pixel spikes make on a smooth map.
 //!
 //! Prints a line per map (windowed-variance ratio r, W1 / bar, PSD error / bar, pass or
 //! FAIL, the route taken) and the number that pass. Maps with missing points are filled
@@ -20,9 +26,10 @@ use clap::Parser;
 use surftile::analysis::level::level_plane;
 use surftile::bake::Taper;
 use surftile::io::{ReadOptions, read_image};
+use surftile::raster::Raster;
 use surftile::sandblast::Sandblast;
 use surftile::stats::{
-    fidelity_bars, psd_error, wasserstein1_standardised, windowed_variance_ratio,
+    fidelity_bars, height_stats, psd_error, wasserstein1_standardised, windowed_variance_ratio,
 };
 
 #[derive(Parser)]
@@ -39,12 +46,53 @@ struct Args {
     /// How crops are made periodic before RPN.
     #[arg(long, value_enum, default_value_t = Taper::MainLobe)]
     taper: Taper,
+    /// Diagnosis: replace output pixels beyond K standard deviations of the measurement
+    /// by their 5×5 median before measuring (see the module documentation).
+    #[arg(long)]
+    despike: Option<f64>,
     /// Measured height maps (.npy, .png, .tif).
     #[arg(required = true)]
     maps: Vec<PathBuf>,
 }
 
-/// The figures of one map: (r, W1, W1 bar, PSD error, PSD bar, route).
+/// Replaces the pixels of `r` (one channel) further than `k`·sd from `mean` by the
+/// median of their 5×5 neighbourhood (clamped at the borders); returns how many.
+fn despike(r: &mut Raster, mean: f64, sd: f64, k: f64) -> usize {
+    let (w, h) = (r.width, r.height);
+    let far = |v: f32| (v as f64 - mean).abs() > k * sd;
+    let spikes: Vec<(usize, usize)> = (0..w * h)
+        .filter(|&i| far(r.data[i]))
+        .map(|i| (i % w, i / w))
+        .collect();
+    let medians: Vec<f32> = spikes
+        .iter()
+        .map(|&(x, y)| {
+            let mut v: Vec<f32> = (0..25)
+                .map(|j| {
+                    let xx = (x + j % 5).saturating_sub(2).min(w - 1);
+                    let yy = (y + j / 5).saturating_sub(2).min(h - 1);
+                    r.get(xx, yy, 0)
+                })
+                .collect();
+            v.sort_unstable_by(f32::total_cmp);
+            v[12]
+        })
+        .collect();
+    for (&(x, y), m) in spikes.iter().zip(medians) {
+        r.set(x, y, 0, m);
+    }
+    spikes.len()
+}
+
+/// Pixels of `r` further than `k`·sd from `mean`.
+fn count_far(r: &Raster, mean: f64, sd: f64, k: f64) -> usize {
+    r.data
+        .iter()
+        .filter(|&&v| (v as f64 - mean).abs() > k * sd)
+        .count()
+}
+
+/// The figures of one map: (r, W1, W1 bar, PSD error, PSD bar, route and notes).
 fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String), String> {
     let name = path
         .file_stem()
@@ -63,6 +111,18 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
     let mut synth = out.raster.clone();
     level_plane(&mut synth);
     let ex = &out.exemplar;
+    let mut how = format!("{:?}", out.how);
+    if let Some(k) = args.despike {
+        let s = height_stats(ex);
+        let per_mpx = |n: usize, r: &Raster| n as f64 * 1e6 / (r.width * r.height) as f64;
+        let in_ex = count_far(ex, s.mean, s.sq, k);
+        let replaced = despike(&mut synth, s.mean, s.sq, k);
+        how += &format!(
+            "  despiked {replaced} px beyond {k} sd ({:.1}/Mpx; the measurement has {in_ex}, {:.1}/Mpx)",
+            per_mpx(replaced, &synth),
+            per_mpx(in_ex, ex)
+        );
+    }
     let bars = fidelity_bars(ex);
     Ok((
         windowed_variance_ratio(&ex.channel(0)),
@@ -70,7 +130,7 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
         bars.w1,
         psd_error(ex, &synth),
         bars.psd,
-        format!("{:?}", out.how),
+        how,
     ))
 }
 
