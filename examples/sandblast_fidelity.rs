@@ -136,6 +136,10 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
 
 fn main() {
     let args = Args::parse();
+    if let Some(k) = args.despike.filter(|k| !(k.is_finite() && *k > 0.0)) {
+        eprintln!("error: --despike {k}: expected a finite number of standard deviations > 0");
+        std::process::exit(2);
+    }
     let (mut pass, mut errors) = (0, 0);
     for path in &args.maps {
         let name = path.display();
