@@ -55,14 +55,13 @@ struct Args {
     maps: Vec<PathBuf>,
 }
 
-/// Replaces the pixels of `r` (one channel) further than `k`·sd from `mean` by the
+/// Replaces the pixels of `r` (channel 0) further than `k`·sd from `mean` by the
 /// median of their 5×5 neighbourhood (clamped at the borders); returns how many.
 fn despike(r: &mut Raster, mean: f64, sd: f64, k: f64) -> usize {
     let (w, h) = (r.width, r.height);
-    let far = |v: f32| (v as f64 - mean).abs() > k * sd;
     let spikes: Vec<(usize, usize)> = (0..w * h)
-        .filter(|&i| far(r.data[i]))
         .map(|i| (i % w, i / w))
+        .filter(|&(x, y)| (r.get(x, y, 0) as f64 - mean).abs() > k * sd)
         .collect();
     let medians: Vec<f32> = spikes
         .iter()
@@ -84,9 +83,10 @@ fn despike(r: &mut Raster, mean: f64, sd: f64, k: f64) -> usize {
     spikes.len()
 }
 
-/// Pixels of `r` further than `k`·sd from `mean`.
+/// Pixels of `r` (channel 0) further than `k`·sd from `mean`.
 fn count_far(r: &Raster, mean: f64, sd: f64, k: f64) -> usize {
-    r.data
+    r.channel(0)
+        .data
         .iter()
         .filter(|&&v| (v as f64 - mean).abs() > k * sd)
         .count()
@@ -113,7 +113,7 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
     let ex = &out.exemplar;
     let mut how = format!("{:?}", out.how);
     if let Some(k) = args.despike {
-        let s = height_stats(ex);
+        let s = height_stats(&ex.channel(0));
         let per_mpx = |n: usize, r: &Raster| n as f64 * 1e6 / (r.width * r.height) as f64;
         let in_ex = count_far(ex, s.mean, s.sq, k);
         let replaced = despike(&mut synth, s.mean, s.sq, k);
