@@ -55,14 +55,19 @@ struct Args {
     maps: Vec<PathBuf>,
 }
 
-/// Replaces the pixels of `r` (channel 0) further than `k`·sd from `mean` by the
-/// median of their 5×5 neighbourhood (clamped at the borders); returns how many.
+/// The pixels (x, y) of `r` (channel 0) further than `k`·sd from `mean`.
+fn spikes(r: &Raster, mean: f64, sd: f64, k: f64) -> Vec<(usize, usize)> {
+    (0..r.width * r.height)
+        .map(|i| (i % r.width, i / r.width))
+        .filter(|&(x, y)| (r.get(x, y, 0) as f64 - mean).abs() > k * sd)
+        .collect()
+}
+
+/// Replaces the [`spikes`] of `r` by the median of their 5×5 neighbourhood (clamped at
+/// the borders); returns how many.
 fn despike(r: &mut Raster, mean: f64, sd: f64, k: f64) -> usize {
     let (w, h) = (r.width, r.height);
-    let spikes: Vec<(usize, usize)> = (0..w * h)
-        .map(|i| (i % w, i / w))
-        .filter(|&(x, y)| (r.get(x, y, 0) as f64 - mean).abs() > k * sd)
-        .collect();
+    let spikes = spikes(r, mean, sd, k);
     let medians: Vec<f32> = spikes
         .iter()
         .map(|&(x, y)| {
@@ -81,15 +86,6 @@ fn despike(r: &mut Raster, mean: f64, sd: f64, k: f64) -> usize {
         r.set(x, y, 0, m);
     }
     spikes.len()
-}
-
-/// Pixels of `r` (channel 0) further than `k`·sd from `mean`.
-fn count_far(r: &Raster, mean: f64, sd: f64, k: f64) -> usize {
-    r.channel(0)
-        .data
-        .iter()
-        .filter(|&&v| (v as f64 - mean).abs() > k * sd)
-        .count()
 }
 
 /// The figures of one map: (r, W1, W1 bar, PSD error, PSD bar, route and notes).
@@ -111,11 +107,12 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
     let mut synth = out.raster.clone();
     level_plane(&mut synth);
     let ex = &out.exemplar;
+    let ex0 = ex.channel(0);
     let mut how = format!("{:?}", out.how);
     if let Some(k) = args.despike {
-        let s = height_stats(&ex.channel(0));
+        let s = height_stats(&ex0);
         let per_mpx = |n: usize, r: &Raster| n as f64 * 1e6 / (r.width * r.height) as f64;
-        let in_ex = count_far(ex, s.mean, s.sq, k);
+        let in_ex = spikes(&ex0, s.mean, s.sq, k).len();
         let replaced = despike(&mut synth, s.mean, s.sq, k);
         how += &format!(
             "  despiked {replaced} px beyond {k} sd ({:.1}/Mpx; the measurement has {in_ex}, {:.1}/Mpx)",
@@ -125,7 +122,7 @@ fn measure(args: &Args, path: &Path) -> Result<(f64, f64, f64, f64, f64, String)
     }
     let bars = fidelity_bars(ex);
     Ok((
-        windowed_variance_ratio(&ex.channel(0)),
+        windowed_variance_ratio(&ex0),
         wasserstein1_standardised(ex, &synth),
         bars.w1,
         psd_error(ex, &synth),
