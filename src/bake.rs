@@ -118,6 +118,7 @@ pub struct Baker {
     overlap: Option<usize>,
     rsgf: RsgfOptions,
     colours: usize,
+    synth: crate::stream::SynthParams,
 }
 
 /// Builder for [`Baker`]; every setter documents its default.
@@ -211,9 +212,24 @@ impl BakerBuilder {
         self.0.rsgf = options;
         self
     }
+    /// Synth: levels (0 = the default for the exemplar), k, passes, jitter and
+    /// appearance dimensions. Default: [`crate::stream::SynthParams::default`].
+    pub fn synth(mut self, params: crate::stream::SynthParams) -> Self {
+        self.0.synth = params;
+        self
+    }
     /// Checks every parameter.
     pub fn build(self) -> Result<Baker> {
         let b = self.0;
+        if b.synth.levels != 0 {
+            b.synth.validate()?;
+        } else {
+            crate::stream::SynthParams {
+                levels: 1,
+                ..b.synth.clone()
+            }
+            .validate()?;
+        }
         if b.rsgf.stochastic && b.lattice.is_some() {
             return Err(Error::param(
                 "lattice",
@@ -315,6 +331,7 @@ impl Baker {
             overlap: None,
             rsgf: RsgfOptions::default(),
             colours: 2,
+            synth: crate::stream::SynthParams::default(),
         })
     }
 
@@ -405,6 +422,19 @@ impl Baker {
                     progress,
                 );
             }
+            Method::Synth => {
+                let (ex, spacing_um) = self.preprocess(image, source)?;
+                let base = (
+                    exemplar_info(&ex, source),
+                    spacing_um,
+                    self.seed,
+                    format!(
+                        "level={:?} downsample={} filter={:?} fill_missing={}",
+                        self.leveling, self.downsample, self.filter, self.fill_missing
+                    ),
+                );
+                return crate::analysis::synth::bake_synth(&ex, &self.synth, base, progress);
+            }
             Method::Rpn | Method::Adsn => {}
         }
         let (ex, spacing_um) = self.preprocess(image, source)?;
@@ -445,9 +475,12 @@ impl Baker {
             let patch = match self.method {
                 Method::Adsn => asymptotic_spot_noise(&crops, pw, ph, &mut rng),
                 // The roller returned at the top of `bake`.
-                Method::Rpn | Method::Roller | Method::Milling | Method::Rsgf | Method::Quilt => {
-                    random_phase_noise(&crops, pw, ph, &mut rng)
-                }
+                Method::Rpn
+                | Method::Roller
+                | Method::Milling
+                | Method::Rsgf
+                | Method::Quilt
+                | Method::Synth => random_phase_noise(&crops, pw, ph, &mut rng),
             };
             let tile = &mut level0[k * pw * ph * c..(k + 1) * pw * ph * c];
             for (ch, plane) in patch.iter().enumerate() {
@@ -546,6 +579,7 @@ impl Baker {
             milling: None,
             rsgf: None,
             wang_colours: None,
+            synth: None,
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
@@ -652,6 +686,7 @@ impl Baker {
             milling: None,
             rsgf: None,
             wang_colours: Some(layout.colours),
+            synth: None,
         };
         let luts = vec![Vec::new(); texels.len()];
         Bank::new(header, texels, luts, "just baked")
@@ -823,6 +858,7 @@ impl Baker {
             milling: None,
             rsgf: None,
             wang_colours: None,
+            synth: None,
         };
         let luts = vec![Vec::new(); texels.len()];
         Bank::new(header, texels, luts, "just baked")

@@ -37,6 +37,7 @@ pub mod imperfect;
 pub mod io;
 pub mod lattice;
 pub mod models;
+pub mod nn;
 pub mod raster;
 pub mod render;
 pub mod sandblast;

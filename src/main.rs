@@ -23,7 +23,8 @@ use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;
 use surftile::source::SourceSpec;
 use surftile::stats::compare;
-use surftile::stream::Metric;
+use surftile::stats::structure::structure;
+use surftile::stream::{Metric, SynthParams};
 use surftile::stream::{Region, Surface};
 use surftile::{Error, Result};
 
@@ -237,6 +238,22 @@ enum Command {
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,
+        /// Synth: synthesis levels; default: the most that keep 8 coarsest spacings in
+        /// the exemplar's shorter side.
+        #[arg(long, allow_negative_numbers = true)]
+        levels: Option<usize>,
+        /// Synth: k-coherence candidates per exemplar pixel (1 to 16).
+        #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
+        k: usize,
+        /// Synth: correction passes per level (0 to 8).
+        #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
+        passes: usize,
+        /// Synth: jitter at upsampling, a fraction (0 to 1) of the level's spacing.
+        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+        jitter: f64,
+        /// Synth: dimensions of the appearance vectors (1 to 32).
+        #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
+        appearance_dims: usize,
     },
     /// Seed 000's sandblast pipeline: a height map of any size at any coarser spacing
     /// from one measurement (down-sample, then crop + RPN, or RPN patches EF-stitched).
@@ -466,6 +483,10 @@ enum Command {
         /// Shape of raw f32 inputs: WxH.
         #[arg(long)]
         raw_shape: Option<String>,
+        /// Skip the patch figures (coherence, completeness, self-repetition, copy
+        /// score, seams at any phase), which are computed over every channel.
+        #[arg(long)]
+        no_structure: bool,
     },
     /// Estimate the two translation vectors of a near-regular image (seed 002 §3.3):
     /// prints v1, v2 (pixels) and the goodness of eq. 9.
@@ -841,6 +862,11 @@ fn run(command: Command) -> Result<()> {
             metric,
             stochastic,
             colours,
+            levels,
+            k,
+            passes,
+            jitter,
+            appearance_dims,
         } => {
             if method == Method::Milling {
                 return bake_milling(&exemplar, spacing, seed, &out);
@@ -902,6 +928,30 @@ fn run(command: Command) -> Result<()> {
                 ));
             }
             builder = builder.rsgf(rsgf);
+            let synth = SynthParams {
+                levels: levels.unwrap_or(0),
+                k,
+                passes,
+                jitter,
+                appearance_dims,
+            };
+            if method != Method::Synth
+                && synth
+                    != (SynthParams {
+                        levels: 0,
+                        ..SynthParams::default()
+                    })
+            {
+                return Err(Error::param(
+                    "method",
+                    method,
+                    "synth when --levels, --k, --passes, --jitter or --appearance-dims is given",
+                ));
+            }
+            if levels == Some(0) {
+                return Err(Error::param("levels", 0, "1 to 12 synthesis levels"));
+            }
+            builder = builder.synth(synth);
             if let Some(l) = lattice {
                 let (u, v) = parse_lattice(&l)?;
                 builder = builder.lattice(u, v);
@@ -1233,6 +1283,14 @@ fn run(command: Command) -> Result<()> {
                     Rule::Blend => {
                         println!("rule        blend (triangle edge {} px)", h.triangle_edge)
                     }
+                    Rule::Synth => {
+                        if let Some(p) = &h.synth {
+                            println!(
+                                "rule        synth: {} levels, k = {}, {} passes, jitter {}, {}-d appearance",
+                                p.levels, p.k, p.passes, p.jitter, p.appearance_dims
+                            );
+                        }
+                    }
                     Rule::Rsgf => {
                         if let Some(p) = &h.rsgf {
                             println!(
@@ -1313,10 +1371,11 @@ fn run(command: Command) -> Result<()> {
             level,
             fill_missing: fill,
             raw_shape,
+            no_structure,
         } => {
             let options = raw_options(&raw_shape)?;
             let load = |path: &Path| -> Result<surftile::Raster> {
-                let mut r = read_image(path, &options)?.raster.channel(0);
+                let mut r = read_image(path, &options)?.raster;
                 let what = path.display().to_string();
                 let missing = r.count_nan();
                 if missing > 0 {
@@ -1332,7 +1391,7 @@ fn run(command: Command) -> Result<()> {
                 if r.data.iter().any(|v| v.is_infinite()) {
                     return Err(Error::decode(what, "the map holds infinite values"));
                 }
-                if level != Leveling::None {
+                if level != Leveling::None && r.channels == 1 {
                     level_plane(&mut r);
                 }
                 Ok(r)
@@ -1340,7 +1399,17 @@ fn run(command: Command) -> Result<()> {
             if let Some(0) = cell {
                 return Err(Error::param("cell", 0, "a cell size of at least 1 pixel"));
             }
-            let (ra, rb) = (load(&a)?, load(&b)?);
+            let (full_a, full_b) = (load(&a)?, load(&b)?);
+            // The height figures read channel 0, levelled as asked whatever the channel
+            // count; the patch figures read colour as it is.
+            let height_channel = |full: &surftile::Raster| {
+                let mut r = full.channel(0);
+                if level != Leveling::None && full.channels > 1 {
+                    level_plane(&mut r);
+                }
+                r
+            };
+            let (ra, rb) = (height_channel(&full_a), height_channel(&full_b));
             for (path, r) in [(&a, &ra), (&b, &rb)] {
                 if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
                     return Err(Error::TooSmall {
@@ -1366,7 +1435,20 @@ fn run(command: Command) -> Result<()> {
                     ),
                 });
             }
-            let figures = compare(&ra, &rb, cell);
+            let mut figures = compare(&ra, &rb, cell);
+            if !no_structure {
+                if full_a.channels != full_b.channels {
+                    return Err(Error::param(
+                        "B's channels",
+                        full_b.channels,
+                        format!(
+                            "{} like A, for the patch figures (or pass --no-structure)",
+                            full_a.channels
+                        ),
+                    ));
+                }
+                figures.structure = Some(structure(&full_a, &full_b, cell));
+            }
             println!(
                 "{}",
                 serde_json::to_string_pretty(&figures)

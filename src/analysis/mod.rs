@@ -14,5 +14,6 @@ pub mod roller;
 pub mod rpn;
 pub mod rsgf;
 pub mod stitch;
+pub mod synth;
 pub mod taper;
 pub mod translation;

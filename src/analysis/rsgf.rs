@@ -151,6 +151,7 @@ pub(crate) fn bake(
         milling: None,
         rsgf: Some(params),
         wang_colours: None,
+        synth: None,
     };
     let luts = vec![Vec::new(); texels.len()];
     Bank::new(header, texels, luts, "just baked")

@@ -47,6 +47,10 @@ pub enum Rule {
     /// tiles, each edge's colour from the hash of the edge, the cell showing the tile
     /// whose four colours match. Stored like a toroidal bank on a square lattice.
     Wang,
+    /// Parallel controllable texture synthesis (Lefebvre & Hoppe 2005/2006): the
+    /// exemplar as one tile, and per synthesis level its Gaussian stack, appearance
+    /// vectors and k-coherence candidates in the extra tables.
+    Synth,
 }
 
 impl std::fmt::Display for Rule {
@@ -57,6 +61,7 @@ impl std::fmt::Display for Rule {
             Rule::Milling => "milling",
             Rule::Rsgf => "rsgf",
             Rule::Wang => "wang",
+            Rule::Synth => "synth",
         })
     }
 }
@@ -78,6 +83,9 @@ pub enum Method {
     /// Wang tiles quilted from crops with minimum-error seams (seed 000 §3.2.1 cuts,
     /// Cohen et al. 2003).
     Quilt,
+    /// Parallel controllable texture synthesis on exemplar coordinates (Lefebvre &
+    /// Hoppe 2005, appearance space 2006): structure kept, streamed in any split.
+    Synth,
 }
 
 impl std::fmt::Display for Method {
@@ -89,6 +97,7 @@ impl std::fmt::Display for Method {
             Method::Milling => "milling",
             Method::Rsgf => "rsgf",
             Method::Quilt => "quilt",
+            Method::Synth => "synth",
         })
     }
 }
@@ -175,6 +184,9 @@ pub struct BankHeader {
     /// Wang rule: colours per edge direction, K (the bank holds K⁴ tiles).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wang_colours: Option<usize>,
+    /// Synth rule: the synthesis parameters; the extra tables hold one block per level.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub synth: Option<crate::stream::synth::SynthParams>,
 }
 
 /// A bank in memory: header, texels per level and T⁻¹ tables per level.
@@ -186,6 +198,10 @@ pub struct Bank {
     pub texels: Vec<Vec<f32>>,
     /// Per level: `channels × lut_size` table entries.
     pub luts: Vec<Vec<f32>>,
+    /// Tables beyond texels and T⁻¹ that a rule needs (synth: one block per synthesis
+    /// level, [`crate::stream::synth::SynthParams::values_per_pixel`] values per exemplar
+    /// pixel); empty for the other rules. Written after the T⁻¹ tables.
+    pub extra: Vec<Vec<f32>>,
 }
 
 impl Bank {
@@ -197,10 +213,22 @@ impl Bank {
         luts: Vec<Vec<f32>>,
         what: &str,
     ) -> Result<Bank> {
+        Bank::with_extra(header, texels, luts, Vec::new(), what)
+    }
+
+    /// [`Bank::new`] with extra tables (the synth rule's).
+    pub fn with_extra(
+        header: BankHeader,
+        texels: Vec<Vec<f32>>,
+        luts: Vec<Vec<f32>>,
+        extra: Vec<Vec<f32>>,
+        what: &str,
+    ) -> Result<Bank> {
         let bank = Bank {
             header,
             texels,
             luts,
+            extra,
         };
         bank.validate(what)?;
         Ok(bank)
@@ -222,6 +250,12 @@ impl Bank {
         }
         if h.rule == Rule::Rsgf {
             return self.validate_rsgf(what);
+        }
+        if h.rule == Rule::Synth {
+            return self.validate_synth(what);
+        }
+        if !self.extra.is_empty() || h.synth.is_some() {
+            return bad(format!("a {} bank with synthesis tables", h.rule));
         }
         let [w, ht] = h.tile_size;
         let toroidal = matches!(h.rule, Rule::Toroidal | Rule::Wang);
@@ -398,6 +432,65 @@ impl Bank {
         Ok(())
     }
 
+    /// Validation of a synth bank: one tile (the exemplar), parameters that fit it, one
+    /// table block per level of the right length, finite values, candidate indices that
+    /// are whole numbers inside the exemplar.
+    fn validate_synth(&self, what: &str) -> Result<()> {
+        let h = &self.header;
+        let bad = |m: String| Err(Error::bank(what, m));
+        let Some(params) = &h.synth else {
+            return bad("synth rule without a synth section".into());
+        };
+        let [w, ht] = h.tile_size;
+        if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
+            return bad(format!(
+                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
+                h.tiles
+            ));
+        }
+        params
+            .validate()
+            .and_then(|_| params.check_exemplar(w, ht, h.channels))
+            .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
+        if h.levels.len() != 1
+            || h.levels[0].size != [w, ht]
+            || h.lut_size != 0
+            || self.texels.len() != 1
+            || self.luts.len() != 1
+            || self.texels[0].len() != w * ht * h.channels
+            || !self.luts[0].is_empty()
+        {
+            return bad("synth layout: expected the exemplar as one level and no table".into());
+        }
+        if self.extra.len() != params.levels {
+            return bad(format!(
+                "{} table blocks; expected one per synthesis level ({})",
+                self.extra.len(),
+                params.levels
+            ));
+        }
+        let per = params.values_per_pixel(h.channels);
+        let values = (h.channels + params.appearance_dims) * w * ht;
+        for (l, block) in self.extra.iter().enumerate() {
+            if block.len() != per * w * ht {
+                return bad(format!("level {l} holds {} table values", block.len()));
+            }
+            if block[..values].iter().any(|v| !v.is_finite())
+                || block[values..]
+                    .iter()
+                    .any(|&v| !(v >= 0.0 && v < (w * ht) as f32 && v.fract() == 0.0))
+            {
+                return bad(format!(
+                    "level {l} has non-finite values or candidates outside the exemplar"
+                ));
+            }
+        }
+        if self.texels[0].iter().any(|v| !v.is_finite()) {
+            return bad("the exemplar has non-finite texels".into());
+        }
+        Ok(())
+    }
+
     /// Validation of a milling bank: one level of noise profiles, one shape table, and
     /// a configuration that passes its own checks.
     fn validate_milling(&self, what: &str) -> Result<()> {
@@ -466,6 +559,7 @@ impl Bank {
             .texels
             .iter()
             .chain(&self.luts)
+            .chain(&self.extra)
             .map(|v| v.len() * 4)
             .sum();
         let mut out = Vec::with_capacity(20 + header.len() + payload);
@@ -473,7 +567,7 @@ impl Bank {
         out.extend_from_slice(&VERSION.to_le_bytes());
         out.extend_from_slice(&(header.len() as u32).to_le_bytes());
         out.extend_from_slice(&header);
-        for block in self.texels.iter().chain(&self.luts) {
+        for block in self.texels.iter().chain(&self.luts).chain(&self.extra) {
             out.extend_from_slice(bytemuck::cast_slice::<f32, u8>(block));
         }
         let crc = crc32fast::hash(&out);
@@ -533,10 +627,21 @@ impl Bank {
         for _ in &header.levels {
             luts.push(take(header.channels * header.lut_size)?);
         }
+        let mut extra = Vec::new();
+        if let Some(p) = &header.synth {
+            let per_level = header.tile_size[0]
+                .checked_mul(header.tile_size[1])
+                .and_then(|n| n.checked_mul(p.values_per_pixel(header.channels)))
+                .filter(|_| p.levels <= 12 && p.k <= 16 && p.appearance_dims <= 32)
+                .ok_or_else(|| bad("synthesis table sizes overflow"))?;
+            for _ in 0..p.levels {
+                extra.push(take(per_level)?);
+            }
+        }
         if offset != payload.len() {
             return Err(bad("the data is longer than the header says"));
         }
-        Bank::new(header, texels, luts, what)
+        Bank::with_extra(header, texels, luts, extra, what)
     }
 
     /// Reads and validates a bank file.

@@ -11,6 +11,7 @@
 pub(crate) mod blend;
 pub mod pages;
 pub mod rsgf;
+pub mod synth;
 pub(crate) mod toroidal;
 
 use std::ops::Range;
@@ -18,6 +19,7 @@ use std::ops::Range;
 pub use blend::BlendSurface;
 pub use pages::{Page, PageKey, PageStats, PageStreamer, View};
 pub use rsgf::{Metric, RsgfModel, RsgfParams, RsgfSurface};
+pub use synth::{SynthParams, SynthSurface};
 pub use toroidal::ToroidalSurface;
 
 use crate::bank::{Bank, Rule};
@@ -32,6 +34,7 @@ pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
             bank, seed,
         )?),
         Rule::Rsgf => Box::new(RsgfSurface::from_bank(bank, seed)?),
+        Rule::Synth => Box::new(SynthSurface::from_bank(bank, seed)?),
     })
 }
 

@@ -870,6 +870,7 @@ impl MillingSurface {
             }),
             rsgf: None,
             wang_colours: None,
+            synth: None,
         };
         Bank::new(
             header,

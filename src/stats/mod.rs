@@ -1,13 +1,18 @@
 //! Quality figures (DESIGN.md, "Quality figures"): what tests, benches and
 //! `surftile stats` use to call a texture good, never the eye alone.
 //!
-//! All functions take single-channel height rasters.
+//! The height figures take single-channel rasters; the [`structure`] figures take every
+//! channel.
 
 use rustfft::num_complex::Complex64;
 use serde::Serialize;
 
 use crate::fft::{RealFft2, half_spectrum_copies};
 use crate::raster::Raster;
+
+pub mod structure;
+
+pub use structure::{PhaseSeams, StructureFigures, seam_any_phase};
 
 /// The ACF threshold of ISO 25178's Sal and Str.
 const ACF_THRESHOLD: f64 = 0.2;
@@ -63,6 +68,9 @@ pub struct Comparison {
     pub seam_score: Option<f64>,
     /// The cell size the seam score used.
     pub cell: Option<usize>,
+    /// Patch figures over every channel ([`structure::structure`]), when computed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub structure: Option<StructureFigures>,
 }
 
 /// Compares exemplar `a` with synthesis `b`.
@@ -74,6 +82,7 @@ pub fn compare(a: &Raster, b: &Raster, cell: Option<usize>) -> Comparison {
         psd_error: psd_error(a, b),
         seam_score: cell.map(|n| seam_score(b, n)),
         cell,
+        structure: None,
     }
 }
 

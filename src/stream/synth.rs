@@ -1,0 +1,647 @@
+//! Parallel controllable texture synthesis (Lefebvre & Hoppe, SIGGRAPH 2005) with
+//! appearance-space neighbourhoods (Lefebvre & Hoppe, SIGGRAPH 2006), as a lazy,
+//! split-invariant [`Surface`].
+//!
+//! The synthesis does not store pixels but **exemplar coordinates** S_l(q), level by level,
+//! coarse to fine; level l's grid has spacing h_l = 2^(n−1−l) output pixels (the finest,
+//! l = n − 1, is the output grid). Each step is a pure function of positions:
+//!
+//! 1. **coarsest level**: S_0(q) is a hashed random coordinate;
+//! 2. **upsampling**: S_l(2p + Δ) = S_(l−1)(p) + h_l·Δ, Δ ∈ {0, 1}², plus a hashed jitter of
+//!    up to `jitter`·h_l pixels per axis (2005, §3.1–3.2);
+//! 3. **correction**: `passes` times, in four sub-passes over the 2×2 parities of q, each
+//!    pixel takes the k-coherence candidate (2005, §3.3; the candidate sets are baked) whose
+//!    exemplar neighbourhood best matches its own. Neighbourhoods are the appearance vectors
+//!    (PCA-reduced 5×5 Gaussian-stack windows; 2006, §3) of the four diagonal neighbours.
+//!
+//! A sub-pass reads only the eight neighbours of a pixel, so a region's pixels depend on
+//! the previous level within a margin of 4·passes pixels, and so on up: a region filled
+//! with its margins equals those pixels of the infinite texture bit for bit, in any split
+//! and on any thread count. The output is the exemplar's value at the final coordinates,
+//! so heights stay in their unit and colours stay exact. Zoomed-out regions (step ≥ 2)
+//! stop at a coarser level and read its Gaussian-stack values.
+
+use std::ops::Range;
+
+use serde::{Deserialize, Serialize};
+
+use super::{Region, Surface, check_buffer, default_threads, floor_split, in_range};
+use crate::bank::{Bank, Rule};
+use crate::error::{Error, Result};
+use crate::hash::hash_cell;
+
+/// Synthesis parameters (stored in the bank header).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SynthParams {
+    /// Synthesis levels n; the coarsest has spacing 2^(n−1) px. Default: the most that
+    /// keep 8 coarsest spacings inside the exemplar's shorter side.
+    pub levels: usize,
+    /// Candidates per exemplar pixel and level (k-coherence; the pixel itself first).
+    /// Default 4; 1 to 16.
+    pub k: usize,
+    /// Correction passes per level. Default 2; 0 to 8.
+    pub passes: usize,
+    /// Jitter added at upsampling, as a fraction of the level's spacing. Default 0.5;
+    /// 0 to 1.
+    pub jitter: f64,
+    /// Dimensions of the appearance vectors. Default 8; 1 to 32, at most 25 × channels.
+    pub appearance_dims: usize,
+}
+
+impl Default for SynthParams {
+    fn default() -> Self {
+        SynthParams {
+            levels: 0,
+            k: 4,
+            passes: 2,
+            jitter: 0.5,
+            appearance_dims: 8,
+        }
+    }
+}
+
+/// Exemplar sides below this are refused.
+pub const MIN_EXEMPLAR_SIDE: usize = 16;
+
+impl SynthParams {
+    /// The default number of levels for a `w × h` exemplar: the coarsest spacing h₀ is
+    /// the largest power of two with 8·h₀ ≤ min(w, h).
+    pub fn default_levels(w: usize, h: usize) -> usize {
+        let side = w.min(h).max(1);
+        let mut levels = 1;
+        while (8usize << levels) <= side && levels < 10 {
+            levels += 1;
+        }
+        levels
+    }
+
+    /// Checks the ranges (not the exemplar).
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=12).contains(&self.levels) {
+            return Err(Error::param(
+                "levels",
+                self.levels,
+                "1 to 12 synthesis levels",
+            ));
+        }
+        if !(1..=16).contains(&self.k) {
+            return Err(Error::param("k", self.k, "1 to 16 candidates per pixel"));
+        }
+        if self.passes > 8 {
+            return Err(Error::param(
+                "passes",
+                self.passes,
+                "0 to 8 correction passes per level",
+            ));
+        }
+        if !(self.jitter.is_finite() && (0.0..=1.0).contains(&self.jitter)) {
+            return Err(Error::param(
+                "jitter",
+                self.jitter,
+                "a fraction from 0 to 1 of a level's spacing",
+            ));
+        }
+        if !(1..=32).contains(&self.appearance_dims) {
+            return Err(Error::param(
+                "appearance dimensions",
+                self.appearance_dims,
+                "1 to 32",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks that a `w × h × c` exemplar holds the coarsest neighbourhood: 7 samples
+    /// h₀ apart (a 5×5 appearance window and its diagonal neighbours) need
+    /// 6·h₀ + 1 ≤ min(w, h).
+    pub fn check_exemplar(&self, w: usize, h: usize, c: usize) -> Result<()> {
+        if w < MIN_EXEMPLAR_SIDE || h < MIN_EXEMPLAR_SIDE {
+            return Err(Error::param(
+                "exemplar size",
+                format!("{w}×{h}"),
+                format!("at least {MIN_EXEMPLAR_SIDE}×{MIN_EXEMPLAR_SIDE} pixels for synthesis"),
+            ));
+        }
+        let h0 = 1usize << (self.levels - 1);
+        if 6 * h0 + 1 > w.min(h) {
+            return Err(Error::param(
+                "levels",
+                self.levels,
+                format!(
+                    "at most {} for a {w}×{h} exemplar: the coarsest neighbourhood spans 6·{h0} + 1 = {} px",
+                    Self::max_levels(w, h),
+                    6 * h0 + 1
+                ),
+            ));
+        }
+        if self.appearance_dims > 25 * c {
+            return Err(Error::param(
+                "appearance dimensions",
+                self.appearance_dims,
+                format!("at most 25 × {c} channels = {}", 25 * c),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The most levels a `w × h` exemplar admits (6·h₀ + 1 ≤ min side).
+    pub fn max_levels(w: usize, h: usize) -> usize {
+        let side = w.min(h);
+        let mut levels = 1;
+        while 6 * (1usize << levels) < side && levels < 12 {
+            levels += 1;
+        }
+        levels
+    }
+
+    /// f32 values the bank stores per exemplar pixel and level: the stack's channels,
+    /// the appearance vector and the candidates.
+    pub fn values_per_pixel(&self, channels: usize) -> usize {
+        channels + self.appearance_dims + self.k
+    }
+}
+
+/// One synthesis level's tables over the exemplar's pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SynthLevel {
+    /// Spacing h_l in pixels.
+    pub spacing: i32,
+    /// The Gaussian stack at this level, `w × h × channels`.
+    pub stack: Vec<f32>,
+    /// Appearance vectors, `w × h × dims`.
+    pub appearance: Vec<f32>,
+    /// k-coherence candidates per pixel (linear indices y·w + x), `w × h × k`; the
+    /// pixel itself first.
+    pub candidates: Vec<u32>,
+}
+
+/// The baked synthesis: exemplar size, parameters and per-level tables.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SynthModel {
+    /// Exemplar width.
+    pub w: usize,
+    /// Exemplar height.
+    pub h: usize,
+    /// Channels.
+    pub channels: usize,
+    /// Parameters.
+    pub params: SynthParams,
+    /// Levels, coarsest first.
+    pub levels: Vec<SynthLevel>,
+}
+
+/// A rectangle of a level's grid, [x0, x0 + w) × [y0, y0 + h).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Rect {
+    x0: i64,
+    y0: i64,
+    w: usize,
+    h: usize,
+}
+
+impl Rect {
+    fn grow(self, m: usize) -> Rect {
+        Rect {
+            x0: self.x0 - m as i64,
+            y0: self.y0 - m as i64,
+            w: self.w + 2 * m,
+            h: self.h + 2 * m,
+        }
+    }
+
+    /// The parent level's rectangle that holds every parent of this one's pixels.
+    fn parent(self) -> Rect {
+        let x0 = self.x0.div_euclid(2);
+        let y0 = self.y0.div_euclid(2);
+        let x1 = (self.x0 + self.w as i64 - 1).div_euclid(2);
+        let y1 = (self.y0 + self.h as i64 - 1).div_euclid(2);
+        Rect {
+            x0,
+            y0,
+            w: (x1 - x0 + 1) as usize,
+            h: (y1 - y0 + 1) as usize,
+        }
+    }
+}
+
+/// Exemplar coordinates over a rectangle of one level.
+struct Grid {
+    rect: Rect,
+    coords: Vec<[i32; 2]>,
+}
+
+impl Grid {
+    #[inline]
+    fn at(&self, x: i64, y: i64) -> [i32; 2] {
+        let i = (y - self.rect.y0) as usize * self.rect.w + (x - self.rect.x0) as usize;
+        self.coords[i]
+    }
+}
+
+/// The four sub-pass parities, in the order of Lefebvre & Hoppe 2005 (§3.3).
+const SUBPASSES: [(i64, i64); 4] = [(0, 0), (1, 1), (0, 1), (1, 0)];
+/// The diagonal neighbours whose appearance forms a neighbourhood (2006, §5).
+const DIAGONALS: [(i32, i32); 4] = [(-1, -1), (1, -1), (-1, 1), (1, 1)];
+/// Hash streams: one per level for the coarsest coordinates and the jitter.
+const STREAM_COARSE: u32 = 0x5359_0000;
+const STREAM_JITTER: u32 = 0x5359_1000;
+
+impl SynthModel {
+    /// The valid coordinate range of level `l`: a margin of one spacing inside the
+    /// exemplar, so every diagonal neighbour of a candidate lies inside it.
+    #[inline]
+    fn valid(&self, l: usize) -> ([i32; 2], [i32; 2]) {
+        let m = self.levels[l].spacing;
+        ([m, m], [self.w as i32 - 1 - m, self.h as i32 - 1 - m])
+    }
+
+    #[inline]
+    fn clamp(&self, l: usize, c: [i32; 2]) -> [i32; 2] {
+        let (lo, hi) = self.valid(l);
+        [c[0].clamp(lo[0], hi[0]), c[1].clamp(lo[1], hi[1])]
+    }
+
+    /// Margin in level pixels that the correction passes of one level need.
+    fn correction_margin(&self) -> usize {
+        self.params.passes * SUBPASSES.len()
+    }
+
+    /// The coordinates of level `l` over `rect`.
+    fn level(&self, seed: u32, l: usize, rect: Rect) -> Grid {
+        let need = rect.grow(self.correction_margin());
+        let mut grid = if l == 0 {
+            self.coarsest(seed, need)
+        } else {
+            self.upsample(seed, l, &self.level(seed, l - 1, need.parent()), need)
+        };
+        let mut valid = need;
+        for _ in 0..self.params.passes {
+            for &parity in &SUBPASSES {
+                let inner = Rect {
+                    x0: valid.x0 + 1,
+                    y0: valid.y0 + 1,
+                    w: valid.w - 2,
+                    h: valid.h - 2,
+                };
+                grid = self.correct(l, &grid, inner, parity);
+                valid = inner;
+            }
+        }
+        debug_assert_eq!(grid.rect, rect);
+        grid
+    }
+
+    fn coarsest(&self, seed: u32, rect: Rect) -> Grid {
+        let (lo, hi) = self.valid(0);
+        let span = [(hi[0] - lo[0] + 1) as u64, (hi[1] - lo[1] + 1) as u64];
+        let mut coords = Vec::with_capacity(rect.w * rect.h);
+        for y in rect.y0..rect.y0 + rect.h as i64 {
+            for x in rect.x0..rect.x0 + rect.w as i64 {
+                let r = hash_cell(seed, x, y, STREAM_COARSE);
+                coords.push([
+                    lo[0] + ((r[0] as u64 * span[0]) >> 32) as i32,
+                    lo[1] + ((r[1] as u64 * span[1]) >> 32) as i32,
+                ]);
+            }
+        }
+        Grid { rect, coords }
+    }
+
+    fn upsample(&self, seed: u32, l: usize, parent: &Grid, rect: Rect) -> Grid {
+        let h = self.levels[l].spacing;
+        let amplitude = self.params.jitter * h as f64;
+        let mut coords = Vec::with_capacity(rect.w * rect.h);
+        for y in rect.y0..rect.y0 + rect.h as i64 {
+            for x in rect.x0..rect.x0 + rect.w as i64 {
+                let p = parent.at(x.div_euclid(2), y.div_euclid(2));
+                let d = [
+                    (x - 2 * x.div_euclid(2)) as i32,
+                    (y - 2 * y.div_euclid(2)) as i32,
+                ];
+                let mut c = [p[0] + h * d[0], p[1] + h * d[1]];
+                if amplitude > 0.0 {
+                    let r = hash_cell(seed, x, y, STREAM_JITTER + l as u32);
+                    for a in 0..2 {
+                        let u = r[a] as f64 / 4_294_967_296.0 * 2.0 - 1.0;
+                        c[a] += (amplitude * u + 0.5).floor() as i32;
+                    }
+                }
+                coords.push(self.clamp(l, c));
+            }
+        }
+        Grid { rect, coords }
+    }
+
+    /// One sub-pass: the pixels of `parity` in `inner` take their best candidate; the
+    /// others keep their coordinates. Reads `grid` within one pixel of `inner`.
+    fn correct(&self, l: usize, grid: &Grid, inner: Rect, parity: (i64, i64)) -> Grid {
+        let level = &self.levels[l];
+        let dims = self.params.appearance_dims;
+        let k = self.params.k;
+        let hs = level.spacing;
+        let w = self.w as i32;
+        let (lo, hi) = self.valid(l);
+        let appearance = |c: [i32; 2]| {
+            let i = (c[1] * w + c[0]) as usize * dims;
+            &level.appearance[i..i + dims]
+        };
+        let mut own = vec![0.0f32; 4 * dims];
+        let mut coords = Vec::with_capacity(inner.w * inner.h);
+        for y in inner.y0..inner.y0 + inner.h as i64 {
+            for x in inner.x0..inner.x0 + inner.w as i64 {
+                let here = grid.at(x, y);
+                if (x.rem_euclid(2), y.rem_euclid(2)) != parity {
+                    coords.push(here);
+                    continue;
+                }
+                for (n, &(dx, dy)) in DIAGONALS.iter().enumerate() {
+                    let c = grid.at(x + dx as i64, y + dy as i64);
+                    own[n * dims..(n + 1) * dims].copy_from_slice(appearance(c));
+                }
+                let mut best = (f32::INFINITY, here);
+                for dy in -1..=1i32 {
+                    for dx in -1..=1i32 {
+                        let v = grid.at(x + dx as i64, y + dy as i64);
+                        let vi = (v[1] * w + v[0]) as usize * k;
+                        for &cand in &level.candidates[vi..vi + k] {
+                            let u = [
+                                (cand % self.w as u32) as i32 - hs * dx,
+                                (cand / self.w as u32) as i32 - hs * dy,
+                            ];
+                            if u[0] < lo[0] || u[1] < lo[1] || u[0] > hi[0] || u[1] > hi[1] {
+                                continue;
+                            }
+                            let mut d = 0.0f32;
+                            for (n, &(ex, ey)) in DIAGONALS.iter().enumerate() {
+                                let a = appearance([u[0] + hs * ex, u[1] + hs * ey]);
+                                for (&p, &q) in own[n * dims..(n + 1) * dims].iter().zip(a) {
+                                    d += (p - q) * (p - q);
+                                }
+                            }
+                            if d < best.0 {
+                                best = (d, u);
+                            }
+                        }
+                    }
+                }
+                coords.push(best.1);
+            }
+        }
+        Grid {
+            rect: inner,
+            coords,
+        }
+    }
+
+    /// Values of level `l` over `rect` (its grid), `channels` per pixel, into `out`.
+    fn values(&self, seed: u32, l: usize, rect: Rect, out: &mut [f32]) {
+        let grid = self.level(seed, l, rect);
+        let c = self.channels;
+        let stack = &self.levels[l].stack;
+        for (dst, s) in out.chunks_exact_mut(c).zip(&grid.coords) {
+            let i = (s[1] as usize * self.w + s[0] as usize) * c;
+            dst.copy_from_slice(&stack[i..i + c]);
+        }
+    }
+
+    /// The level a footprint of `step` pixels reads: finest for step < 2, one coarser
+    /// per doubling.
+    fn level_for(&self, step: f64) -> usize {
+        let top = self.levels.len() - 1;
+        if !(step >= 2.0) {
+            return top;
+        }
+        let up = (step.log2().floor() as usize).min(top);
+        top - up
+    }
+}
+
+/// A surface synthesised from a synth bank ([`Rule::Synth`]) with a placement seed.
+pub struct SynthSurface {
+    model: SynthModel,
+    seed: u32,
+}
+
+/// Side of the blocks a fill is cut into (level-grid pixels): large enough that the
+/// margins cost little, small enough to spread over the cores.
+const FILL_BLOCK: usize = 128;
+
+impl SynthSurface {
+    /// The surface of `bank` placed with `seed`.
+    pub fn from_bank(bank: &Bank, seed: u32) -> Result<SynthSurface> {
+        let h = &bank.header;
+        let (Rule::Synth, Some(params)) = (h.rule, &h.synth) else {
+            return Err(Error::bank(
+                "synth surface",
+                format!("a {} bank; expected a synth bank", h.rule),
+            ));
+        };
+        let [w, ht] = h.tile_size;
+        let c = h.channels;
+        let per = params.values_per_pixel(c);
+        if bank.extra.len() != params.levels {
+            return Err(Error::bank(
+                "synth surface",
+                "level count differs from the tables",
+            ));
+        }
+        let mut levels = Vec::with_capacity(params.levels);
+        for (l, block) in bank.extra.iter().enumerate() {
+            let n = w * ht;
+            if block.len() != n * per {
+                return Err(Error::bank(
+                    "synth surface",
+                    "level tables have the wrong length",
+                ));
+            }
+            let (stack, rest) = block.split_at(n * c);
+            let (appearance, candidates) = rest.split_at(n * params.appearance_dims);
+            levels.push(SynthLevel {
+                spacing: 1 << (params.levels - 1 - l),
+                stack: stack.to_vec(),
+                appearance: appearance.to_vec(),
+                candidates: candidates.iter().map(|&v| v as u32).collect(),
+            });
+        }
+        Ok(SynthSurface {
+            model: SynthModel {
+                w,
+                h: ht,
+                channels: c,
+                params: params.clone(),
+                levels,
+            },
+            seed,
+        })
+    }
+
+    /// A surface straight from a model.
+    pub fn new(model: SynthModel, seed: u32) -> SynthSurface {
+        SynthSurface { model, seed }
+    }
+
+    /// The model.
+    pub fn model(&self) -> &SynthModel {
+        &self.model
+    }
+
+    /// Fills the level-grid rectangle `rect` of level `l` into `out`, in blocks on
+    /// `threads` threads.
+    fn fill_grid(&self, l: usize, rect: Rect, out: &mut [f32], threads: usize) {
+        let c = self.model.channels;
+        let bands: Vec<(usize, &mut [f32])> = out
+            .chunks_mut(FILL_BLOCK * rect.w * c)
+            .enumerate()
+            .collect();
+        let work = |(b, chunk): (usize, &mut [f32])| {
+            let rows = chunk.len() / (rect.w * c);
+            let mut buf = Vec::new();
+            for bx in (0..rect.w).step_by(FILL_BLOCK) {
+                let bw = FILL_BLOCK.min(rect.w - bx);
+                let sub = Rect {
+                    x0: rect.x0 + bx as i64,
+                    y0: rect.y0 + (b * FILL_BLOCK) as i64,
+                    w: bw,
+                    h: rows,
+                };
+                buf.resize(bw * rows * c, 0.0);
+                self.model.values(self.seed, l, sub, &mut buf);
+                for r in 0..rows {
+                    chunk[(r * rect.w + bx) * c..(r * rect.w + bx + bw) * c]
+                        .copy_from_slice(&buf[r * bw * c..(r + 1) * bw * c]);
+                }
+            }
+        };
+        let threads = threads.clamp(1, bands.len().max(1));
+        if threads == 1 {
+            bands.into_iter().for_each(work);
+            return;
+        }
+        let queue = crossbeam::queue::ArrayQueue::new(bands.len());
+        for band in bands {
+            let _ = queue.push(band);
+        }
+        let _ = crossbeam::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| {
+                    while let Some(band) = queue.pop() {
+                        work(band);
+                    }
+                });
+            }
+        });
+    }
+
+    /// Fills `region` on `threads` threads: integer-aligned step-1 regions straight
+    /// from the finest level's grid; others bilinearly from the grid of the level their
+    /// step reads, over the rectangle that covers them.
+    pub fn fill_threads(&self, region: &Region, out: &mut [f32], threads: usize) -> Result<()> {
+        region.validate()?;
+        let c = self.model.channels;
+        check_buffer(region, c, out)?;
+        let (x0, y0) = (region.x_at(0), region.y_at(0));
+        if region.step == 1.0 && x0.fract() == 0.0 && y0.fract() == 0.0 {
+            let top = self.model.levels.len() - 1;
+            let rect = Rect {
+                x0: x0 as i64,
+                y0: y0 as i64,
+                w: region.width,
+                h: region.height,
+            };
+            self.fill_grid(top, rect, out, threads);
+            return Ok(());
+        }
+        let l = self.model.level_for(region.step);
+        let spacing = self.model.levels[l].spacing as f64;
+        let (x1, y1) = (
+            region.x_at(region.width - 1),
+            region.y_at(region.height - 1),
+        );
+        let gx0 = (x0.min(x1) / spacing).floor() as i64;
+        let gy0 = (y0.min(y1) / spacing).floor() as i64;
+        let gx1 = (x0.max(x1) / spacing).floor() as i64 + 1;
+        let gy1 = (y0.max(y1) / spacing).floor() as i64 + 1;
+        let (gw, gh) = ((gx1 - gx0 + 1) as usize, (gy1 - gy0 + 1) as usize);
+        if gw.saturating_mul(gh) > 1 << 28 {
+            return Err(Error::Limits(format!(
+                "a synth region covering {gw}×{gh} grid pixels at level {l}"
+            )));
+        }
+        let rect = Rect {
+            x0: gx0,
+            y0: gy0,
+            w: gw,
+            h: gh,
+        };
+        let mut grid = vec![0.0f32; gw * gh * c];
+        self.fill_grid(l, rect, &mut grid, threads);
+        for row in 0..region.height {
+            let gy = region.y_at(row) / spacing;
+            for col in 0..region.width {
+                let gx = region.x_at(col) / spacing;
+                let at = (row * region.width + col) * c;
+                bilinear(&grid, rect, c, gx, gy, &mut out[at..at + c]);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Bilinear interpolation of a level grid at level coordinates (gx, gy), which the
+/// grid's rectangle covers with its right and bottom neighbours.
+fn bilinear(grid: &[f32], rect: Rect, c: usize, gx: f64, gy: f64, out: &mut [f32]) {
+    // SAFETY: gx, gy are finite and far inside the i64 range (checked coordinates over a
+    // spacing of at least 1).
+    let ((ix, fx), (iy, fy)) = unsafe { (floor_split(gx), floor_split(gy)) };
+    let (fx, fy) = (fx as f32, fy as f32);
+    let (cx, cy) = ((ix - rect.x0) as usize, (iy - rect.y0) as usize);
+    let cx1 = (cx + 1).min(rect.w - 1);
+    let cy1 = (cy + 1).min(rect.h - 1);
+    for (k, o) in out.iter_mut().enumerate() {
+        let v = |x: usize, y: usize| grid[(y * rect.w + x) * c + k];
+        let top = v(cx, cy) + (v(cx1, cy) - v(cx, cy)) * fx;
+        let bottom = v(cx, cy1) + (v(cx1, cy1) - v(cx, cy1)) * fx;
+        *o = top + (bottom - top) * fy;
+    }
+}
+
+impl Surface for SynthSurface {
+    fn channels(&self) -> usize {
+        self.model.channels
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        let c = self.model.channels;
+        if !in_range(x, y) || out.len() < c {
+            out.iter_mut().for_each(|v| *v = f32::NAN);
+            return;
+        }
+        let l = self.model.level_for(footprint);
+        let spacing = self.model.levels[l].spacing as f64;
+        let (gx, gy) = (x / spacing, y / spacing);
+        let rect = Rect {
+            x0: gx.floor() as i64,
+            y0: gy.floor() as i64,
+            w: 2,
+            h: 2,
+        };
+        let mut grid = [0.0f32; 16];
+        self.model.values(self.seed, l, rect, &mut grid[..4 * c]);
+        bilinear(&grid[..4 * c], rect, c, gx, gy, &mut out[..c]);
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let sub = Region {
+            row0: region.row0 + rows.start as i64,
+            height: rows.len(),
+            ..*region
+        };
+        if self.fill_threads(&sub, out, 1).is_err() {
+            out.iter_mut().for_each(|v| *v = f32::NAN);
+        }
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        self.fill_threads(region, out, default_threads())
+    }
+}
