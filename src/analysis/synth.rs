@@ -103,24 +103,26 @@ fn binomial_blur(src: &[f32], w: usize, h: usize, c: usize, step: usize) -> Vec<
     pass(&pass(src, true), false)
 }
 
-/// The 5×5 window of `stack` at (x, y), samples `spacing` apart (clamped), every channel.
-fn window(
-    stack: &[f32],
+/// One stack level: values, width, height, channels.
+struct Stack<'a> {
+    values: &'a [f32],
     w: usize,
     h: usize,
     c: usize,
-    spacing: usize,
-    x: usize,
-    y: usize,
-    dst: &mut Vec<f32>,
-) {
-    dst.clear();
-    let s = spacing as i64;
-    for j in -2..=2i64 {
-        let sy = (y as i64 + j * s).clamp(0, h as i64 - 1) as usize;
-        for i in -2..=2i64 {
-            let sx = (x as i64 + i * s).clamp(0, w as i64 - 1) as usize;
-            dst.extend_from_slice(&stack[(sy * w + sx) * c..(sy * w + sx + 1) * c]);
+}
+
+impl Stack<'_> {
+    /// The 5×5 window at (x, y), samples `spacing` apart (clamped), every channel.
+    fn window(&self, spacing: usize, x: usize, y: usize, dst: &mut Vec<f32>) {
+        dst.clear();
+        let (w, h, c) = (self.w, self.h, self.c);
+        let s = spacing as i64;
+        for j in -2..=2i64 {
+            let sy = (y as i64 + j * s).clamp(0, h as i64 - 1) as usize;
+            for i in -2..=2i64 {
+                let sx = (x as i64 + i * s).clamp(0, w as i64 - 1) as usize;
+                dst.extend_from_slice(&self.values[(sy * w + sx) * c..(sy * w + sx + 1) * c]);
+            }
         }
     }
 }
@@ -134,11 +136,17 @@ fn appearance_vectors(
     spacing: usize,
     dims: usize,
 ) -> Vec<f32> {
+    let level = Stack {
+        values: stack,
+        w,
+        h,
+        c,
+    };
     let step = (w * h).div_ceil(PCA_SAMPLES).max(1);
     let mut data = Vec::new();
     let mut v = Vec::new();
     for i in (0..w * h).step_by(step) {
-        window(stack, w, h, c, spacing, i % w, i / w, &mut v);
+        level.window(spacing, i % w, i / w, &mut v);
         data.extend_from_slice(&v);
     }
     let pca = Pca::fit(&data, 25 * c, dims);
@@ -147,7 +155,7 @@ fn appearance_vectors(
         let mut v = Vec::new();
         let mut out = vec![0.0f32; w * dims];
         for x in 0..w {
-            window(stack, w, h, c, spacing, x, y, &mut v);
+            level.window(spacing, x, y, &mut v);
             pca.project(&v, &mut out[x * dims..(x + 1) * dims]);
         }
         out

@@ -291,16 +291,32 @@ impl SynthModel {
         grid
     }
 
+    /// The coarsest level: coherent exemplar patches, one per block of `B` × `B`
+    /// level pixels at a hashed origin (Lefebvre & Hoppe start from one coordinate
+    /// everywhere, which a non-periodic exemplar cannot continue; per-pixel random
+    /// coordinates would leave every neighbourhood incoherent, and the corrections
+    /// would then drift to the exemplar's blandest pixels).
     fn coarsest(&self, seed: u32, rect: Rect) -> Grid {
         let (lo, hi) = self.valid(0);
-        let span = [(hi[0] - lo[0] + 1) as u64, (hi[1] - lo[1] + 1) as u64];
+        let h0 = self.levels[0].spacing as i64;
+        let span = ((hi[0] - lo[0] + 1).min(hi[1] - lo[1] + 1)) as i64;
+        let block = (span / (2 * h0)).max(1);
+        let room = [
+            (hi[0] - lo[0]) as i64 - h0 * (block - 1) + 1,
+            (hi[1] - lo[1]) as i64 - h0 * (block - 1) + 1,
+        ];
         let mut coords = Vec::with_capacity(rect.w * rect.h);
         for y in rect.y0..rect.y0 + rect.h as i64 {
             for x in rect.x0..rect.x0 + rect.w as i64 {
-                let r = hash_cell(seed, x, y, STREAM_COARSE);
+                let (bx, by) = (x.div_euclid(block), y.div_euclid(block));
+                let r = hash_cell(seed, bx, by, STREAM_COARSE);
+                let origin = [
+                    lo[0] as i64 + ((r[0] as u64 * room[0] as u64) >> 32) as i64,
+                    lo[1] as i64 + ((r[1] as u64 * room[1] as u64) >> 32) as i64,
+                ];
                 coords.push([
-                    lo[0] + ((r[0] as u64 * span[0]) >> 32) as i32,
-                    lo[1] + ((r[1] as u64 * span[1]) >> 32) as i32,
+                    (origin[0] + h0 * (x - bx * block)) as i32,
+                    (origin[1] + h0 * (y - by * block)) as i32,
                 ]);
             }
         }
@@ -408,7 +424,7 @@ impl SynthModel {
     /// per doubling.
     fn level_for(&self, step: f64) -> usize {
         let top = self.levels.len() - 1;
-        if !(step >= 2.0) {
+        if step.is_nan() || step < 2.0 {
             return top;
         }
         let up = (step.log2().floor() as usize).min(top);

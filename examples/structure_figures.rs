@@ -1,0 +1,229 @@
+//! The issue-31 comparison: surftile's `synth` method against Embark's
+//! `texture-synthesis` 0.8.2 on the same exemplars, scored by the same code
+//! ([`surftile::stats::structure`], W1, PSD error, standard-deviation ratio).
+//!
+//! ```text
+//! cargo run --release --example structure_figures -- [--side 512] [--seed 0]
+//!     [--no-embark] [--out-dir DIR] EXEMPLAR ...
+//! ```
+//!
+//! Images (PNG) are compared as they are; height maps (`.npy`) plane-levelled.
+//! texture-synthesis reads 8-bit images, so it gets the exemplar normalised to 0–255 and
+//! its output is mapped back to the exemplar's unit. Prints one line per exemplar and
+//! method; with `--out-dir`, writes each output as an 8-bit PNG to look at.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Parser;
+use surftile::analysis::level::level_plane;
+use surftile::bake::{Baker, Leveling};
+use surftile::bank::Method;
+use surftile::io::{ReadOptions, read_image};
+use surftile::raster::Raster;
+use surftile::stats::structure::structure;
+use surftile::stats::{psd_error, wasserstein1_standardised};
+use surftile::stream::{Region, Surface, SynthParams, open};
+use texture_synthesis as ts;
+
+#[derive(Parser)]
+struct Args {
+    /// Output side in pixels.
+    #[arg(long, default_value_t = 512)]
+    side: usize,
+    /// Seed of both syntheses.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Skip texture-synthesis (slow).
+    #[arg(long)]
+    no_embark: bool,
+    /// Where to write the outputs as PNG.
+    #[arg(long)]
+    out_dir: Option<PathBuf>,
+    /// Synth: jitter (fraction of a level's spacing).
+    #[arg(long, default_value_t = SynthParams::default().jitter)]
+    jitter: f64,
+    /// Synth: k-coherence candidates.
+    #[arg(long, default_value_t = SynthParams::default().k)]
+    k: usize,
+    /// Synth: correction passes per level.
+    #[arg(long, default_value_t = SynthParams::default().passes)]
+    passes: usize,
+    /// Synth: levels (0: the default for the exemplar).
+    #[arg(long, default_value_t = 0)]
+    levels: usize,
+    /// Exemplars.
+    exemplars: Vec<PathBuf>,
+}
+
+fn main() {
+    let args = Args::parse();
+    let mut failed = false;
+    for path in &args.exemplars {
+        if let Err(e) = run(&args, path) {
+            eprintln!("{}: {e}", path.display());
+            failed = true;
+        }
+    }
+    if failed {
+        std::process::exit(1);
+    }
+}
+
+fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let image = read_image(path, &ReadOptions::default())?;
+    let height_map = path.extension().is_some_and(|e| e == "npy");
+    let leveling = if height_map {
+        Leveling::Plane
+    } else {
+        Leveling::None
+    };
+    let baker = Baker::builder()
+        .method(Method::Synth)
+        .leveling(leveling)
+        .seed(args.seed)
+        .synth(SynthParams {
+            jitter: args.jitter,
+            k: args.k,
+            passes: args.passes,
+            levels: args.levels,
+            ..SynthParams::default()
+        })
+        .build()?;
+    let (mut ex, _) = baker.preprocess(&image, &name)?;
+    if height_map {
+        level_plane(&mut ex);
+    }
+    let n = args.side;
+    let start = Instant::now();
+    let bank = baker.bake(&image, &name, &mut |_| {})?;
+    let baked = start.elapsed().as_secs_f64();
+    let surface = open(&bank, args.seed as u32)?;
+    let mut data = vec![0.0f32; n * n * ex.channels];
+    let fill_start = Instant::now();
+    surface.fill(&Region::new(0.0, 0.0, n, n), &mut data)?;
+    let filled = fill_start.elapsed().as_secs_f64();
+    let synth = Raster::from_vec(n, n, ex.channels, data)?;
+    report(
+        &name,
+        "synth",
+        &ex,
+        &synth,
+        format!("bake {baked:.2} s + fill {filled:.2} s"),
+    );
+    save(args, &name, "synth", &ex, &synth)?;
+    if !args.no_embark {
+        let (lo, hi) = ex
+            .data
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+        let scale = if hi > lo { 255.0 / (hi - lo) } else { 1.0 };
+        let rgba: Vec<u8> = (0..ex.pixels())
+            .flat_map(|i| {
+                let px = &ex.data[i * ex.channels..(i + 1) * ex.channels];
+                let q = |v: f32| ((v - lo) * scale).round().clamp(0.0, 255.0) as u8;
+                let (r, g, b) = match ex.channels {
+                    1 => (q(px[0]), q(px[0]), q(px[0])),
+                    _ => (q(px[0]), q(px[1]), q(px[2.min(ex.channels - 1)])),
+                };
+                [r, g, b, 255]
+            })
+            .collect();
+        let img = ts::image::RgbaImage::from_raw(ex.width as u32, ex.height as u32, rgba)
+            .ok_or("exemplar buffer")?;
+        let start = Instant::now();
+        let session = ts::Session::builder()
+            .add_example(ts::image::DynamicImage::ImageRgba8(img))
+            .output_size(ts::Dims::square(n as u32))
+            .seed(args.seed)
+            .max_thread_count(2)
+            .build()?;
+        let out = session.run(None).into_image().to_rgba8();
+        let took = start.elapsed().as_secs_f64();
+        let c = ex.channels.min(3);
+        let data: Vec<f32> = out
+            .pixels()
+            .flat_map(|p| (0..c).map(move |k| p.0[k] as f32 / scale + lo))
+            .collect();
+        let embark = Raster::from_vec(n, n, c, data)?;
+        report(
+            &name,
+            "texture-synthesis",
+            &ex,
+            &embark,
+            format!("{took:.2} s"),
+        );
+        save(args, &name, "texture-synthesis", &ex, &embark)?;
+    }
+    Ok(())
+}
+
+/// Worst per-channel W1, PSD error and |σ ratio − 1|, and the structure figures.
+fn report(name: &str, method: &str, ex: &Raster, out: &Raster, time: String) {
+    let s = structure(ex, out, None);
+    let (mut w1, mut psd, mut sd) = (0.0f64, 0.0f64, 1.0f64);
+    for k in 0..ex.channels.min(out.channels) {
+        let (a, b) = (ex.channel(k), out.channel(k));
+        w1 = w1.max(wasserstein1_standardised(&a, &b));
+        psd = psd.max(psd_error(&a, &b));
+        let sd_of = |r: &Raster| {
+            let m = r.data.iter().map(|&v| v as f64).sum::<f64>() / r.data.len() as f64;
+            (r.data.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / r.data.len() as f64)
+                .sqrt()
+        };
+        let ratio = sd_of(&b) / sd_of(&a);
+        if (ratio - 1.0).abs() > (sd - 1.0).abs() {
+            sd = ratio;
+        }
+    }
+    let seams = s.seams.as_ref().map_or(f64::NAN, |p| p.worst);
+    println!(
+        "{name:<24} {method:<18} coherence {:.3}  completeness {:.3}  self-rep {:.3}  copy {:.3}  seam {:.3}  W1 {:.3}  PSD {:.3}  sd {:.3}  {time}",
+        s.coherence, s.completeness, s.self_repetition, s.copy_score, seams, w1, psd, sd
+    );
+}
+
+fn save(
+    args: &Args,
+    name: &str,
+    method: &str,
+    ex: &Raster,
+    out: &Raster,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let Some(dir) = &args.out_dir else {
+        return Ok(());
+    };
+    std::fs::create_dir_all(dir)?;
+    let (lo, hi) = ex
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    let scale = if hi > lo { 255.0 / (hi - lo) } else { 1.0 };
+    let c = out.channels.min(3);
+    let bytes: Vec<u8> = (0..out.pixels())
+        .flat_map(|i| (0..c).map(move |k| (i, k)))
+        .map(|(i, k)| {
+            ((out.data[i * out.channels + k] - lo) * scale)
+                .round()
+                .clamp(0.0, 255.0) as u8
+        })
+        .collect();
+    let file = std::fs::File::create(dir.join(format!("{name}-{method}-{}.png", out.width)))?;
+    let mut enc = png::Encoder::new(
+        std::io::BufWriter::new(file),
+        out.width as u32,
+        out.height as u32,
+    );
+    enc.set_color(if c == 1 {
+        png::ColorType::Grayscale
+    } else {
+        png::ColorType::Rgb
+    });
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header()?.write_image_data(&bytes)?;
+    Ok(())
+}
