@@ -199,11 +199,11 @@ impl Source {
         // adapter a full frame costs ~100 ms even for a bank: their pages are filled on
         // the GPU by the streamer's workers, on a device of their own, so the render
         // loop's queue never waits behind a page's dispatch.
-        // RSGF and Wang banks have no GPU twin: CPU pages.
+        // RSGF, Wang and synth banks have no GPU twin: CPU pages.
         // Seed 001 models and imperfection layers have no GPU twin either.
         let on_gpu = layer.is_none()
             && match spec {
-                SourceSpec::Bank(b) => !matches!(b.header.rule, Rule::Rsgf | Rule::Wang),
+                SourceSpec::Bank(b) => !matches!(b.header.rule, Rule::Rsgf | Rule::Wang | Rule::Synth),
                 SourceSpec::Milling { .. } => true,
                 SourceSpec::Model(_) => false,
             };
