@@ -203,7 +203,9 @@ impl Source {
         // Seed 001 models and imperfection layers have no GPU twin either.
         let on_gpu = layer.is_none()
             && match spec {
-                SourceSpec::Bank(b) => !matches!(b.header.rule, Rule::Rsgf | Rule::Wang | Rule::Synth),
+                SourceSpec::Bank(b) => {
+                    !matches!(b.header.rule, Rule::Rsgf | Rule::Wang | Rule::Synth)
+                }
                 SourceSpec::Milling { .. } => true,
                 SourceSpec::Model(_) => false,
             };
