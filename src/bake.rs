@@ -98,6 +98,10 @@ impl Taper {
     }
 }
 
+/// What every bank header records of a preprocessed exemplar: its statistics, spacing
+/// (µm), the bake seed and the preprocessing parameters as text.
+pub type HeaderBase = (ExemplarInfo, Option<f64>, u64, String);
+
 /// Validated bake parameters. Make one with [`Baker::builder`].
 #[derive(Clone, Debug)]
 pub struct Baker {
@@ -384,6 +388,26 @@ impl Baker {
         Ok((raster, spacing))
     }
 
+    /// The preprocessed exemplar and what every bank header records of it: exemplar
+    /// statistics, spacing, seed and the preprocessing parameters as text.
+    fn preprocess_with_header(
+        &self,
+        image: &ImageFile,
+        source: &str,
+    ) -> Result<(Raster, HeaderBase)> {
+        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let base = (
+            exemplar_info(&ex, source),
+            spacing_um,
+            self.seed,
+            format!(
+                "level={:?} downsample={} filter={:?} fill_missing={}",
+                self.leveling, self.downsample, self.filter, self.fill_missing
+            ),
+        );
+        Ok((ex, base))
+    }
+
     /// Bakes a blend bank from `image`. `source` names it in errors and in the bank;
     /// `progress` receives one line per step.
     pub fn bake(
@@ -403,16 +427,7 @@ impl Baker {
                 ));
             }
             Method::Rsgf => {
-                let (ex, spacing_um) = self.preprocess(image, source)?;
-                let base = (
-                    exemplar_info(&ex, source),
-                    spacing_um,
-                    self.seed,
-                    format!(
-                        "level={:?} downsample={} filter={:?} fill_missing={}",
-                        self.leveling, self.downsample, self.filter, self.fill_missing
-                    ),
-                );
+                let (ex, base) = self.preprocess_with_header(image, source)?;
                 return crate::analysis::rsgf::bake(
                     &ex,
                     &self.rsgf,
@@ -423,16 +438,7 @@ impl Baker {
                 );
             }
             Method::Synth => {
-                let (ex, spacing_um) = self.preprocess(image, source)?;
-                let base = (
-                    exemplar_info(&ex, source),
-                    spacing_um,
-                    self.seed,
-                    format!(
-                        "level={:?} downsample={} filter={:?} fill_missing={}",
-                        self.leveling, self.downsample, self.filter, self.fill_missing
-                    ),
-                );
+                let (ex, base) = self.preprocess_with_header(image, source)?;
                 return crate::analysis::synth::bake_synth(&ex, &self.synth, base, progress);
             }
             Method::Rpn | Method::Adsn => {}
