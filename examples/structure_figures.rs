@@ -52,6 +52,12 @@ struct Args {
     /// Synth: levels (0: the default for the exemplar).
     #[arg(long, default_value_t = 0)]
     levels: usize,
+    /// Synth: coherence bias.
+    #[arg(long, default_value_t = SynthParams::default().coherence)]
+    coherence: f64,
+    /// Synth: levels below the coarsest with jitter.
+    #[arg(long, default_value_t = SynthParams::default().jitter_levels)]
+    jitter_levels: usize,
     /// Exemplars.
     exemplars: Vec<PathBuf>,
 }
@@ -91,6 +97,8 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             k: args.k,
             passes: args.passes,
             levels: args.levels,
+            coherence: args.coherence,
+            jitter_levels: args.jitter_levels,
             ..SynthParams::default()
         })
         .build()?;

@@ -238,8 +238,8 @@ enum Command {
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,
-        /// Synth: synthesis levels; default: the most that keep 8 coarsest spacings in
-        /// the exemplar's shorter side.
+        /// Synth: synthesis levels; default: the most the exemplar admits (its shorter
+        /// side holds 3 coarsest spacings + 1).
         #[arg(long, allow_negative_numbers = true)]
         levels: Option<usize>,
         /// Synth: k-coherence candidates per exemplar pixel (1 to 16).
@@ -254,6 +254,13 @@ enum Command {
         /// Synth: dimensions of the appearance vectors (1 to 32).
         #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
         appearance_dims: usize,
+        /// Synth: coherence bias, the distance factor of candidates that continue a
+        /// neighbour's patch (above 0, at most 1).
+        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+        coherence: f64,
+        /// Synth: levels below the coarsest whose upsampling adds jitter (0 to 12).
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+        jitter_levels: usize,
     },
     /// Seed 000's sandblast pipeline: a height map of any size at any coarser spacing
     /// from one measurement (down-sample, then crop + RPN, or RPN patches EF-stitched).
@@ -867,6 +874,8 @@ fn run(command: Command) -> Result<()> {
             passes,
             jitter,
             appearance_dims,
+            coherence,
+            jitter_levels,
         } => {
             if method == Method::Milling {
                 return bake_milling(&exemplar, spacing, seed, &out);
@@ -934,6 +943,8 @@ fn run(command: Command) -> Result<()> {
                 passes,
                 jitter,
                 appearance_dims,
+                coherence,
+                jitter_levels,
             };
             if method != Method::Synth
                 && synth
@@ -945,7 +956,7 @@ fn run(command: Command) -> Result<()> {
                 return Err(Error::param(
                     "method",
                     method,
-                    "synth when --levels, --k, --passes, --jitter or --appearance-dims is given",
+                    "synth when --levels, --k, --passes, --jitter, --appearance-dims, --coherence or --jitter-levels is given",
                 ));
             }
             if levels == Some(0) {
@@ -1286,8 +1297,14 @@ fn run(command: Command) -> Result<()> {
                     Rule::Synth => {
                         if let Some(p) = &h.synth {
                             println!(
-                                "rule        synth: {} levels, k = {}, {} passes, jitter {}, {}-d appearance",
-                                p.levels, p.k, p.passes, p.jitter, p.appearance_dims
+                                "rule        synth: {} levels, k = {}, {} passes, jitter {} on {} levels, coherence {}, {}-d appearance",
+                                p.levels,
+                                p.k,
+                                p.passes,
+                                p.jitter,
+                                p.jitter_levels,
+                                p.coherence,
+                                p.appearance_dims
                             );
                         }
                     }

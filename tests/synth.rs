@@ -112,7 +112,7 @@ fn bad_input_is_refused_with_what_is_expected() {
     let e = synth_model(
         &ex,
         &SynthParams {
-            levels: 6,
+            levels: 7,
             ..SynthParams::default()
         },
     )
@@ -135,7 +135,7 @@ fn bad_input_is_refused_with_what_is_expected() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("(5, 7)") && e.contains("finite"), "{e}");
-    // Absurd k, passes, jitter, dimensions.
+    // Absurd k, passes, jitter, dimensions, coherence, jitter levels.
     for (p, word) in [
         (
             SynthParams {
@@ -171,6 +171,20 @@ fn bad_input_is_refused_with_what_is_expected() {
                 ..SynthParams::default()
             },
             "1 to 32",
+        ),
+        (
+            SynthParams {
+                coherence: 0.0,
+                ..SynthParams::default()
+            },
+            "above 0 and at most 1",
+        ),
+        (
+            SynthParams {
+                jitter_levels: 99,
+                ..SynthParams::default()
+            },
+            "0 to 12 levels",
         ),
     ] {
         let e = synth_model(&ex, &p).unwrap_err().to_string();

