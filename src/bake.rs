@@ -408,6 +408,17 @@ impl Baker {
         Ok((ex, base))
     }
 
+    /// The method [`Method::Auto`] picks for `image` after this baker's preprocessing,
+    /// with its one-line reason ([`crate::analysis::auto`]).
+    pub fn choose_method(
+        &self,
+        image: &ImageFile,
+        source: &str,
+    ) -> Result<crate::analysis::auto::AutoChoice> {
+        let (ex, _) = self.preprocess(image, source)?;
+        Ok(crate::analysis::auto::choose_method(&ex, self.seed))
+    }
+
     /// Bakes a blend bank from `image`. `source` names it in errors and in the bank;
     /// `progress` receives one line per step.
     pub fn bake(
@@ -440,6 +451,15 @@ impl Baker {
             Method::Synth => {
                 let (ex, base) = self.preprocess_with_header(image, source)?;
                 return crate::analysis::synth::bake_synth(&ex, &self.synth, base, progress);
+            }
+            Method::Auto => {
+                let choice = self.choose_method(image, source)?;
+                progress(&format!("auto: {}", choice.reason));
+                let baker = Baker {
+                    method: choice.method,
+                    ..self.clone()
+                };
+                return baker.bake(image, source, progress);
             }
             Method::Rpn | Method::Adsn => {}
         }
@@ -486,7 +506,8 @@ impl Baker {
                 | Method::Milling
                 | Method::Rsgf
                 | Method::Quilt
-                | Method::Synth => random_phase_noise(&crops, pw, ph, &mut rng),
+                | Method::Synth
+                | Method::Auto => random_phase_noise(&crops, pw, ph, &mut rng),
             };
             let tile = &mut level0[k * pw * ph * c..(k + 1) * pw * ph * c];
             for (ch, plane) in patch.iter().enumerate() {

@@ -170,7 +170,7 @@ enum Command {
         /// Exemplar height map or image: .png, .tif/.tiff, .npy, or .raw/.f32 (with --raw-shape).
         exemplar: PathBuf,
         /// Analysis method.
-        #[arg(long, value_enum, default_value_t = Method::Rpn)]
+        #[arg(long, value_enum, default_value_t = Method::Auto)]
         method: Method,
         /// Output bank file.
         #[arg(long)]

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use surftile::Raster;
 use surftile::analysis::level::level_plane;
 use surftile::bake::Baker;
+use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image, write_heights};
 use surftile::stats::{
     FidelityBars, fidelity_bars, psd_error, seam_score_by, wasserstein1_standardised,
@@ -31,7 +32,14 @@ fn check_map(rel: &str) -> Vec<String> {
         .to_string_lossy()
         .to_string();
     let image = read_image(&data(rel), &ReadOptions::default()).expect("read exemplar");
-    let baker = Baker::builder().fill_missing(true).seed(1).build().unwrap();
+    // `auto` (the CLI's default) must pick rpn for these maps, and they must keep
+    // passing: a bank of another rule would fail `BlendSurface::new` below.
+    let baker = Baker::builder()
+        .method(Method::Auto)
+        .fill_missing(true)
+        .seed(1)
+        .build()
+        .unwrap();
     let (exemplar, _) = baker.preprocess(&image, &name).unwrap();
     let bank = baker.bake(&image, &name, &mut |_| {}).unwrap();
     let surface = BlendSurface::new(&bank, 7).unwrap();

@@ -1,5 +1,6 @@
 //! Offline analysis stages, one file per method. Everything here runs once, at bake time.
 
+pub mod auto;
 pub mod cut;
 pub mod gauss;
 pub mod heal;

@@ -86,6 +86,10 @@ pub enum Method {
     /// Parallel controllable texture synthesis on exemplar coordinates (Lefebvre &
     /// Hoppe 2005, appearance space 2006): structure kept, streamed in any split.
     Synth,
+    /// Picks one from the exemplar and says why: a lattice → roller or rsgf,
+    /// Gaussian-like → rpn, structured stochastic → synth. Bakes only; a bank records
+    /// the method picked.
+    Auto,
 }
 
 impl std::fmt::Display for Method {
@@ -98,6 +102,7 @@ impl std::fmt::Display for Method {
             Method::Rsgf => "rsgf",
             Method::Quilt => "quilt",
             Method::Synth => "synth",
+            Method::Auto => "auto",
         })
     }
 }

@@ -1,0 +1,106 @@
+//! Issue 31, speed of the streamed `synth` method: a 1024² output from a 256² RGB
+//! exemplar (the scikit-image gravel photo, its grey copied to three channels), bake
+//! and fill together against Embark's texture-synthesis 0.8.2 on the same exemplar and
+//! output size, 2 threads each (target: ≥ 20× faster); the fill alone against a memcpy
+//! of the same bytes (target: ≥ 1 M samples/s on 2 cores); one `height()` at a point.
+//!
+//! texture-synthesis takes about 40 s per 1024² output here, so its 10 samples alone
+//! take several minutes: `cargo bench --bench synth -- --skip texture_synthesis` leaves
+//! it out.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use surftile::Raster;
+use surftile::analysis::synth::synth_model;
+use surftile::io::{ReadOptions, read_image};
+use surftile::stream::synth::SynthSurface;
+use surftile::stream::{Region, Surface, SynthParams};
+use texture_synthesis as ts;
+
+const SIDE: usize = 1024;
+
+fn exemplar() -> Raster {
+    let grey = read_image(
+        &common::repo("tests/data/skimage-gravel-256.png"),
+        &ReadOptions::default(),
+    )
+    .unwrap()
+    .raster;
+    let data = grey.data.iter().flat_map(|&v| [v, v, v]).collect();
+    Raster::from_vec(grey.width, grey.height, 3, data).unwrap()
+}
+
+fn bench(c: &mut Criterion) {
+    let ex = exemplar();
+    let params = SynthParams::default();
+    let region = Region::new(0.0, 0.0, SIDE, SIDE);
+    let mut g = c.benchmark_group("synth");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    g.bench_function("bake_256_rgb", |b| {
+        b.iter(|| synth_model(black_box(&ex), &params).unwrap())
+    });
+    let surface = SynthSurface::new(synth_model(&ex, &params).unwrap(), 1);
+    let mut out = vec![0.0f32; SIDE * SIDE * 3];
+    g.bench_function("fill_1024_rgb_2_threads", |b| {
+        b.iter(|| {
+            surface
+                .fill_threads(black_box(&region), &mut out, 2)
+                .unwrap()
+        })
+    });
+    let src = vec![0.5f32; SIDE * SIDE * 3];
+    g.bench_function("baseline_memcpy_1024_rgb", |b| {
+        b.iter(|| out.copy_from_slice(black_box(&src)))
+    });
+    g.bench_function("bake_and_fill_1024_rgb", |b| {
+        b.iter(|| {
+            let s = SynthSurface::new(synth_model(black_box(&ex), &params).unwrap(), 1);
+            s.fill_threads(&region, &mut out, 2).unwrap();
+        })
+    });
+    let mut px = [0.0f32; 3];
+    let mut i = 0u64;
+    g.bench_function("height_at_a_point", |b| {
+        b.iter(|| {
+            i += 1;
+            let x = (i.wrapping_mul(0x9E37_79B9) % 1_000_000) as f64 + 0.5;
+            surface.sample_footprint(black_box(x), black_box(-3e8 + x), 1.0, &mut px);
+            px[0]
+        })
+    });
+    let (lo, hi) = ex
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    let rgba: Vec<u8> = ex
+        .data
+        .chunks_exact(3)
+        .flat_map(|p| {
+            let q = |v: f32| ((v - lo) / (hi - lo) * 255.0).round().clamp(0.0, 255.0) as u8;
+            [q(p[0]), q(p[1]), q(p[2]), 255]
+        })
+        .collect();
+    let image = ts::image::RgbaImage::from_raw(ex.width as u32, ex.height as u32, rgba).unwrap();
+    g.bench_function("baseline_texture_synthesis_1024_rgb", |b| {
+        b.iter(|| {
+            ts::Session::builder()
+                .add_example(ts::image::DynamicImage::ImageRgba8(image.clone()))
+                .output_size(ts::Dims::square(SIDE as u32))
+                .seed(1)
+                .max_thread_count(2)
+                .build()
+                .unwrap()
+                .run(None)
+                .into_image()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
