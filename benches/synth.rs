@@ -5,8 +5,8 @@
 //! of the same bytes (target: ≥ 1 M samples/s on 2 cores); one `height()` at a point.
 //!
 //! texture-synthesis takes about 40 s per 1024² output here, so its 10 samples alone
-//! take several minutes: `cargo bench --bench synth -- --skip texture_synthesis` leaves
-//! it out.
+//! take several minutes: `cargo bench --bench synth -- 'synth/(bake|fill|height|baseline_m)'`
+//! leaves it out.
 
 use std::hint::black_box;
 use std::time::Duration;
