@@ -345,8 +345,8 @@ impl SynthModel {
         } else {
             self.upsample(seed, l, &self.level(seed, l - 1, need.parent()), need)
         };
-        for pass in 0..self.passes_at(l) {
-            for (s, &parity) in SUBPASSES.iter().enumerate() {
+        for _ in 0..self.passes_at(l) {
+            for &parity in &SUBPASSES {
                 let v = grid.rect;
                 let inner = Rect {
                     x0: v.x0 + 1,
@@ -355,7 +355,6 @@ impl SynthModel {
                     h: v.h - 2,
                 };
                 grid = self.correct(l, &grid, inner, parity, true);
-                let _ = (pass, s);
             }
         }
         debug_assert_eq!(grid.rect, rect);
