@@ -52,6 +52,9 @@ struct Args {
     /// Synth: levels (0: the default for the exemplar).
     #[arg(long, default_value_t = 0)]
     levels: usize,
+    /// Synth: correction passes on the finest levels.
+    #[arg(long, default_value_t = SynthParams::default().fine_passes)]
+    fine_passes: usize,
     /// Synth: coherence bias.
     #[arg(long, default_value_t = SynthParams::default().coherence)]
     coherence: f64,
@@ -98,6 +101,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             passes: args.passes,
             levels: args.levels,
             coherence: args.coherence,
+            fine_passes: args.fine_passes,
             jitter_levels: args.jitter_levels,
             ..SynthParams::default()
         })

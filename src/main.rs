@@ -245,9 +245,13 @@ enum Command {
         /// Synth: k-coherence candidates per exemplar pixel (1 to 16).
         #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
         k: usize,
-        /// Synth: correction passes per level (0 to 8).
-        #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
+        /// Synth: correction passes per level, the coarsest and the two finest excepted
+        /// (0 to 8).
+        #[arg(long, default_value_t = SynthParams::default().passes, allow_negative_numbers = true)]
         passes: usize,
+        /// Synth: correction passes on the two finest levels (0 to 8).
+        #[arg(long, default_value_t = SynthParams::default().fine_passes, allow_negative_numbers = true)]
+        fine_passes: usize,
         /// Synth: jitter at upsampling, a fraction (0 to 1) of the level's spacing.
         #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
         jitter: f64,
@@ -256,10 +260,11 @@ enum Command {
         appearance_dims: usize,
         /// Synth: coherence bias, the distance factor of candidates that continue a
         /// neighbour's patch (above 0, at most 1).
-        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = SynthParams::default().coherence, allow_negative_numbers = true)]
         coherence: f64,
-        /// Synth: levels below the coarsest whose upsampling adds jitter (0 to 12).
-        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+        /// Synth: levels below the coarsest whose upsampling adds jitter (1 to 12; 0:
+        /// those of spacing ≥ 16 px, at least one).
+        #[arg(long, default_value_t = SynthParams::default().jitter_levels, allow_negative_numbers = true)]
         jitter_levels: usize,
     },
     /// Seed 000's sandblast pipeline: a height map of any size at any coarser spacing
@@ -872,6 +877,7 @@ fn run(command: Command) -> Result<()> {
             levels,
             k,
             passes,
+            fine_passes,
             jitter,
             appearance_dims,
             coherence,
@@ -941,6 +947,7 @@ fn run(command: Command) -> Result<()> {
                 levels: levels.unwrap_or(0),
                 k,
                 passes,
+                fine_passes,
                 jitter,
                 appearance_dims,
                 coherence,
@@ -956,7 +963,7 @@ fn run(command: Command) -> Result<()> {
                 return Err(Error::param(
                     "method",
                     method,
-                    "synth when --levels, --k, --passes, --jitter, --appearance-dims, --coherence or --jitter-levels is given",
+                    "synth when --levels, --k, --passes, --fine-passes, --jitter, --appearance-dims, --coherence or --jitter-levels is given",
                 ));
             }
             if levels == Some(0) {
@@ -1297,12 +1304,13 @@ fn run(command: Command) -> Result<()> {
                     Rule::Synth => {
                         if let Some(p) = &h.synth {
                             println!(
-                                "rule        synth: {} levels, k = {}, {} passes, jitter {} on {} levels, coherence {}, {}-d appearance",
+                                "rule        synth: {} levels, k = {}, {} passes ({} on the finest), jitter {} on {} levels, coherence {}, {}-d appearance",
                                 p.levels,
                                 p.k,
                                 p.passes,
+                                p.fine_passes,
                                 p.jitter,
-                                p.jitter_levels,
+                                p.jittered(p.levels),
                                 p.coherence,
                                 p.appearance_dims
                             );

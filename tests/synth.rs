@@ -181,6 +181,13 @@ fn bad_input_is_refused_with_what_is_expected() {
         ),
         (
             SynthParams {
+                fine_passes: 9,
+                ..SynthParams::default()
+            },
+            "0 to 8 correction passes on the finest",
+        ),
+        (
+            SynthParams {
                 jitter_levels: 99,
                 ..SynthParams::default()
             },

@@ -246,13 +246,14 @@ pub fn bake_synth(
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     let p = &model.params;
     progress(&format!(
-        "exemplar {w}×{h}×{c}: {} levels (coarsest spacing {} px), k = {}, {} passes, jitter {} on {} levels, coherence {}, {}-d appearance",
+        "exemplar {w}×{h}×{c}: {} levels (coarsest spacing {} px), k = {}, {} passes ({} on the finest), jitter {} on {} levels, coherence {}, {}-d appearance",
         p.levels,
         1usize << (p.levels - 1),
         p.k,
         p.passes,
+        p.fine_passes,
         p.jitter,
-        p.jitter_levels,
+        p.jittered(p.levels),
         p.coherence,
         p.appearance_dims
     ));
@@ -290,8 +291,15 @@ pub fn bake_synth(
         lut_z_range: 0.0,
         exemplar,
         bake: format!(
-            "method=synth levels={} k={} passes={} jitter={} jitter_levels={} coherence={} appearance_dims={} {bake_text}",
-            p.levels, p.k, p.passes, p.jitter, p.jitter_levels, p.coherence, p.appearance_dims
+            "method=synth levels={} k={} passes={} fine_passes={} jitter={} jitter_levels={} coherence={} appearance_dims={} {bake_text}",
+            p.levels,
+            p.k,
+            p.passes,
+            p.fine_passes,
+            p.jitter,
+            p.jitter_levels,
+            p.coherence,
+            p.appearance_dims
         ),
         seam_costs: Vec::new(),
         milling: None,
