@@ -179,7 +179,7 @@ fn heal_cuts<'a>(
                     };
                     let target = match (step(lq), step(ln)) {
                         (Some(a), Some(b)) => {
-                            if q % 2 == 0 {
+                            if q.is_multiple_of(2) {
                                 a
                             } else {
                                 b
