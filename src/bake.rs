@@ -98,6 +98,10 @@ impl Taper {
     }
 }
 
+/// Roller tiles with identical borders a bake cuts when `tiles` is not given (fewer
+/// where the exemplar does not hold them).
+pub const DEFAULT_ROLLER_TILES: usize = 4;
+
 /// What every bank header records of a preprocessed exemplar: its statistics, spacing
 /// (µm), the bake seed and the preprocessing parameters as text.
 pub type HeaderBase = (ExemplarInfo, Option<f64>, u64, String);
@@ -116,7 +120,7 @@ pub struct Baker {
     triangle_edge: Option<f64>,
     spacing_um: Option<f64>,
     taper: Taper,
-    tiles: usize,
+    tiles: Option<usize>,
     lattice: Option<[(i64, i64); 2]>,
     tile: Option<[usize; 2]>,
     overlap: Option<usize>,
@@ -184,9 +188,10 @@ impl BakerBuilder {
         self.0.taper = taper;
         self
     }
-    /// Roller: number of tiles with identical borders (1 to 64). Default: 1.
+    /// Roller: number of tiles with identical borders (1 to 64). Default:
+    /// [`DEFAULT_ROLLER_TILES`], or fewer where the exemplar does not hold them.
     pub fn tiles(mut self, n: usize) -> Self {
-        self.0.tiles = n;
+        self.0.tiles = Some(n);
         self
     }
     /// Roller: the periodicity vectors u, v in pixels, overriding detection.
@@ -252,8 +257,10 @@ impl BakerBuilder {
                 ),
             ));
         }
-        if !(1..=64).contains(&b.tiles) {
-            return Err(Error::param("tiles", b.tiles, "1 to 64 tiles"));
+        if let Some(n) = b.tiles
+            && !(1..=64).contains(&n)
+        {
+            return Err(Error::param("tiles", n, "1 to 64 tiles"));
         }
         if let Some([u, v]) = b.lattice {
             let l = Lattice::from_basis(u, v)?;
@@ -329,7 +336,7 @@ impl Baker {
             triangle_edge: None,
             spacing_um: None,
             taper: Taper::Hann,
-            tiles: 1,
+            tiles: None,
             lattice: None,
             tile: None,
             overlap: None,
@@ -729,26 +736,45 @@ impl Baker {
         report: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
         // The analysis takes a second or two; its lines are held back until it succeeds,
-        // so a refused exemplar gets one error line, not a half-told story.
-        let mut lines: Vec<String> = Vec::new();
-        let bank = self.bake_roller_quiet(image, source, &mut |l| lines.push(l.to_string()))?;
-        for l in &lines {
-            report(l);
+        // so a refused exemplar gets one error line, not a half-told story. Without
+        // `tiles`, several are tried first (a single tile repeats on the lattice, seed
+        // 003 allows several with identical borders), then fewer.
+        let counts: Vec<usize> = match self.tiles {
+            Some(n) => vec![n],
+            None => (1..=DEFAULT_ROLLER_TILES).rev().collect(),
+        };
+        let mut last = None;
+        for &n in &counts {
+            let mut lines: Vec<String> = Vec::new();
+            match self.bake_roller_quiet(image, source, n, &mut |l| lines.push(l.to_string())) {
+                Ok(bank) => {
+                    if self.tiles.is_none() && n < DEFAULT_ROLLER_TILES {
+                        report(&format!(
+                            "the exemplar does not hold {DEFAULT_ROLLER_TILES} tiles with identical borders: {n}"
+                        ));
+                    }
+                    for l in &lines {
+                        report(l);
+                    }
+                    return Ok(bank);
+                }
+                Err(e) => last = Some(e),
+            }
         }
-        Ok(bank)
+        Err(last.expect("at least one tile count"))
     }
 
     fn bake_roller_quiet(
         &self,
         image: &ImageFile,
         source: &str,
+        n_tiles: usize,
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
         let (ex, spacing_um) = self.preprocess(image, source)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         progress(&format!(
-            "exemplar {w}×{h}×{c}; roller with {} tile(s)",
-            self.tiles
+            "exemplar {w}×{h}×{c}; roller with {n_tiles} tile(s)"
         ));
         let lattice = if let Some([u, v]) = self.lattice {
             progress(&format!(
@@ -761,7 +787,7 @@ impl Baker {
         } else {
             // A stochastic side: the largest that leaves the overlap (a sixth of the tile,
             // at least 8 px) and, for several tiles, room for their rhomboids.
-            let per_axis = (self.tiles as f64).sqrt().ceil();
+            let per_axis = (n_tiles as f64).sqrt().ceil();
             let side = |n: usize| {
                 let room = 1.0 + (per_axis - 1.0) / 2.0;
                 let t = ((n as f64 * 6.0 / 7.0).min(n as f64 - 8.0) / room).floor();
@@ -819,7 +845,7 @@ impl Baker {
                 }
             }
         };
-        let rt = roller_tiles(&ex, lattice, self.tiles, self.overlap, progress)?;
+        let rt = roller_tiles(&ex, lattice, n_tiles, self.overlap, progress)?;
         let mut levels = Vec::new();
         let mut texels = Vec::new();
         let mut tiles = rt.tiles.clone();
@@ -872,7 +898,7 @@ impl Baker {
                 u.1,
                 v.0,
                 v.1,
-                self.tiles,
+                n_tiles,
                 rt.overlap,
                 rt.origins,
                 rt.phase,

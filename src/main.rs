@@ -208,9 +208,10 @@ enum Command {
         /// Shape of a raw f32 exemplar: WxH or WxHxC.
         #[arg(long)]
         raw_shape: Option<String>,
-        /// Roller: number of tiles with identical borders.
-        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
-        tiles: usize,
+        /// Roller: number of tiles with identical borders (1 to 64; default 4, or fewer
+        /// where the exemplar does not hold them).
+        #[arg(long, allow_negative_numbers = true)]
+        tiles: Option<usize>,
         /// Roller and RSGF: periodicity vectors "ux,uy;vx,vy" in pixels, instead of detection.
         #[arg(long, allow_hyphen_values = true)]
         lattice: Option<String>,
@@ -897,9 +898,11 @@ fn run(command: Command) -> Result<()> {
                 .leveling(level)
                 .downsample(downsample, filter)
                 .fill_missing(fill_missing)
-                .taper(taper)
-                .tiles(tiles);
-            if method != Method::Roller && (tile.is_some() || tiles != 1) {
+                .taper(taper);
+            if let Some(n) = tiles {
+                builder = builder.tiles(n);
+            }
+            if method != Method::Roller && (tile.is_some() || tiles.is_some()) {
                 return Err(Error::param(
                     "method",
                     method,

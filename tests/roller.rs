@@ -61,6 +61,7 @@ fn tiles_wrap_exactly_on_their_lattice() {
         let bank = Baker::builder()
             .method(Method::Roller)
             .lattice(u, v)
+            .tiles(1)
             .build()
             .unwrap()
             .bake(&image(ex), "synthetic", &mut |_| {})
@@ -254,4 +255,34 @@ fn toroidal_fills_are_split_invariant() {
         );
         assert!(a.iter().all(|v| v.is_finite()));
     }
+}
+
+/// Without `tiles`, the roller cuts several tiles with identical borders (seed 003), and
+/// fewer only where the exemplar does not hold them: 4 from the 512² di-6 map, fewer
+/// (with a line saying so) from an exemplar just large enough for one tile of its
+/// lattice plus the overlap.
+#[test]
+fn the_default_is_several_tiles() {
+    let baker = Baker::builder().method(Method::Roller).build().unwrap();
+    let mut lines = Vec::new();
+    let bank = baker
+        .bake(&di6(), "di-6", &mut |l| lines.push(l.to_string()))
+        .unwrap();
+    assert_eq!(bank.header.tiles, surftile::bake::DEFAULT_ROLLER_TILES);
+    let lattice = surftile::lattice::Lattice::from_basis((32, 0), (0, 24)).unwrap();
+    let (w, h) = surftile::analysis::roller::required_size(lattice, None);
+    let small = near_regular(w, h, (32, 0), (0, 24), 5);
+    let mut lines = Vec::new();
+    let bank = Baker::builder()
+        .method(Method::Roller)
+        .lattice((32, 0), (0, 24))
+        .build()
+        .unwrap()
+        .bake(&image(small), "small", &mut |l| lines.push(l.to_string()))
+        .unwrap();
+    assert!(bank.header.tiles < surftile::bake::DEFAULT_ROLLER_TILES);
+    assert!(
+        lines.iter().any(|l| l.contains("does not hold 4 tiles")),
+        "{lines:?}"
+    );
 }
