@@ -32,8 +32,25 @@ fn bench(c: &mut Criterion) {
                 .sum::<f32>()
         })
     });
-    // 257² lattice points per iteration.
-    g.throughput(Throughput::Elements(257 * 257));
+    // The 4-point rule (`smooth`, the rock and china presets): no target, reported.
+    let smooth = FractalSurface::new(
+        FractalParams {
+            smooth: true,
+            ..FractalParams::default()
+        },
+        7,
+    )
+    .unwrap();
+    g.bench_function("height_random_smooth", |b| {
+        b.iter(|| {
+            pts.iter()
+                .map(|&(x, y)| smooth.height(black_box(x), black_box(y)))
+                .sum::<f32>()
+        })
+    });
+    // The twin computes its 1 × 1 block grown by 3 squares on every side: 1793²
+    // lattice points per iteration.
+    g.throughput(Throughput::Elements(1793 * 1793));
     g.bench_function("baseline_eager_grid_per_point", |b| {
         b.iter(|| black_box(s.eager_grid(black_box(-3), 5, 1, 1))[1000])
     });

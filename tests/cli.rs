@@ -925,6 +925,7 @@ fn model_files_and_bad_shading_are_handled() {
             levels: 6,
             kind: FractalKind::Casting,
             amplitude: 1.0,
+            smooth: false,
         },
         2,
     )

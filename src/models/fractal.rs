@@ -17,8 +17,15 @@
 //!   at x = 10¹² as at 0. A region fill computes each level once over the region (plus
 //!   the enclosing squares) and shares every parent among its children.
 //!
-//! [`FractalSurface::eager_grid`] is the slow twin: the paper's whole-grid recursion
-//! over a block of patches, square by square. Between lattice points the surface is
+//! With `smooth` (the `rock` and `china` presets), eq. (5) takes new points from the
+//! 4-point interpolating rule (Dyn, Levin & Gregory 1987) instead of two-point means:
+//! the paper's rule leaves the surface piecewise linear between coarse lattice lines,
+//! whose slope jumps shading shows as square blocks; the 4-point rule's limit is C¹.
+//! A point then reads parents 1.5 spacings around, so `height()` computes small
+//! windows per level instead of one square (about 20× slower); fills barely change.
+//!
+//! [`FractalSurface::eager_grid`] is the slow twin: the whole-grid recursion over a
+//! block of patches, level by level over a dense grid. Between lattice points the surface is
 //! bilinear (the finest squares are one pixel); heights are in the units of the
 //! amplitude S⁽⁰⁾ (`amplitude`, default 1).
 
@@ -65,6 +72,11 @@ pub struct FractalParams {
     pub kind: FractalKind,
     /// S⁽⁰⁾, the displacement scale of the coarsest lattice, in height units (> 0).
     pub amplitude: f64,
+    /// Eq. (5) with the 4-point rule instead of the paper's two-point means: no creases
+    /// along the lattice lines (see `rule_edge`), at about 20× the cost of a single
+    /// `height()` (region fills barely change). Default false (the paper's rule); the
+    /// `rock` and `china` presets set it. Ignored by eq. (7).
+    pub smooth: bool,
 }
 
 impl Default for FractalParams {
@@ -74,6 +86,7 @@ impl Default for FractalParams {
             levels: 8,
             kind: FractalKind::Rock,
             amplitude: 1.0,
+            smooth: false,
         }
     }
 }
@@ -129,6 +142,50 @@ fn centre(kind: FractalKind, c: [f64; 4], g: f64, s: f64) -> f64 {
             let range = c[0].max(c[1]).max(c[2]).max(c[3]) - c[0].min(c[1]).min(c[2]).min(c[3]);
             mean + range * g * s
         }
+    }
+}
+
+/// The 4-point interpolating subdivision (Dyn, Levin & Gregory 1987): weights of the
+/// parents 3, 1, 1 and 3 half-spacings away from a new point.
+const SMOOTH: [f64; 4] = [-1.0 / 16.0, 9.0 / 16.0, 9.0 / 16.0, -1.0 / 16.0];
+
+/// Level-0 squares the slow twin grows its block by on every side.
+const TWIN_MARGIN: usize = 3;
+
+/// A new point on a lattice line from its parents along that line, `taps` 3, 1, 1 and 3
+/// half-spacings away. Eq. (5) (rock, china): the 4-point mean plus g·S⁽ⁿ⁾. The paper
+/// takes the mean of the two nearest: the surface is then piecewise linear between the
+/// coarse lattice lines at every scale, its slope jumps across them, and shading shows
+/// the squares as creases (the `china` preset: second differences on lattice columns
+/// 1.8–2.0× the median). The 4-point rule's limit is C¹, so nothing marks the lines
+/// (`lattice_lines_carry_no_creases`). Eq. (7) (casting) keeps the paper's two-point
+/// mean: its midpoint must stay between its ends.
+#[inline(always)]
+fn rule_edge(kind: FractalKind, smooth: bool, taps: [f64; 4], g: f64, s: f64) -> f64 {
+    match kind {
+        FractalKind::Rock if smooth => {
+            (SMOOTH[0] * taps[0] + SMOOTH[1] * taps[1])
+                + (SMOOTH[2] * taps[2] + SMOOTH[3] * taps[3])
+                + g * s
+        }
+        _ => edge(kind, taps[1], taps[2], g, s),
+    }
+}
+
+/// A square's centre from the 4 × 4 parents around it (`taps[b][a]`, x = a): the
+/// tensor 4-point rule for eq. (5), the paper's four corners for eq. (7).
+#[inline(always)]
+fn rule_centre(kind: FractalKind, smooth: bool, taps: [[f64; 4]; 4], g: f64, s: f64) -> f64 {
+    match kind {
+        FractalKind::Rock if smooth => {
+            let rows = taps.map(|r| {
+                (SMOOTH[0] * r[0] + SMOOTH[1] * r[1]) + (SMOOTH[2] * r[2] + SMOOTH[3] * r[3])
+            });
+            (SMOOTH[0] * rows[0] + SMOOTH[1] * rows[1])
+                + (SMOOTH[2] * rows[2] + SMOOTH[3] * rows[3])
+                + g * s
+        }
+        _ => centre(kind, [taps[1][1], taps[1][2], taps[2][1], taps[2][2]], g, s),
     }
 }
 
@@ -200,12 +257,27 @@ impl FractalSurface {
     }
 
     /// The lazy evaluation: the corners [c00, c10, c01, c11] of the level-`m` square
-    /// (side 2^(L−m)) that contains pixel (x, y), and that square's origin. Descends
+    /// (side 2^(L−m)) that contains pixel (x, y), and that square's origin. The paper's
+    /// rule descends one square per level; the smooth rule computes the windows of
+    /// parents its stencil reads (up to 7 × 7 per level: about 20× the cost).
+    #[inline]
+    fn square(&self, x: i64, y: i64, m: usize) -> ([f64; 4], i64, i64) {
+        if !self.smooth() {
+            return self.square_paper(x, y, m);
+        }
+        let k = self.params.levels - m as u32;
+        let (i, j) = (floor_shr(x, k), floor_shr(y, k));
+        let c = self.lattice(m as u32, i, i + 1, j, j + 1);
+        ([c[0], c[1], c[2], c[3]], i << k, j << k)
+    }
+
+    /// [`FractalSurface::square`] for the paper's two-point rule: the corners of the
+    /// level-`m` square that contains pixel (x, y), and its origin. Descends
     /// from the level-0 square: at each level only the three new points of the quadrant
     /// holding (x, y) are made (an edge midpoint on each of its two inner sides, and the
     /// centre); its fourth corner is the parent's.
     #[inline]
-    fn square(&self, x: i64, y: i64, m: usize) -> ([f64; 4], i64, i64) {
+    fn square_paper(&self, x: i64, y: i64, m: usize) -> ([f64; 4], i64, i64) {
         let l = self.params.levels;
         let kind = self.params.kind;
         let (mut ox, mut oy) = (floor_shr(x, l) << l, floor_shr(y, l) << l);
@@ -251,6 +323,12 @@ impl FractalSurface {
         (c, ox, oy)
     }
 
+    /// Whether eq. (5) takes the 4-point rule (see [`FractalParams::smooth`]).
+    #[inline(always)]
+    fn smooth(&self) -> bool {
+        self.params.smooth && self.params.kind == FractalKind::Rock
+    }
+
     /// The surface at (x, y) with the recursion stopped at level `m`: bilinear in the
     /// level-m square that holds the point.
     #[inline]
@@ -266,131 +344,158 @@ impl FractalSurface {
         bilinear(c, fx, fy)
     }
 
-    /// The slow twin: the paper's whole-grid recursion ([Procedure 1]) over `cells_w ×
-    /// cells_h` level-0 squares starting at square (cell_x, cell_y), square by square and
-    /// level by level (edge midpoints, then centres). Returns the
-    /// (cells_w·2^L + 1) × (cells_h·2^L + 1) lattice heights, row-major, x first.
+    /// The slow twin: the whole-grid recursion over `cells_w × cells_h` level-0 squares
+    /// starting at square (cell_x, cell_y), level by level over a dense grid of pixels
+    /// (every point of a level from the whole previous level). The smooth rule reads
+    /// parents up to 1.5 of their spacings away, so the recursion runs over the block
+    /// grown by [`TWIN_MARGIN`] squares on every side (the values it cannot complete
+    /// stay NaN and never reach the block: the gap they leave is below 3·2^L pixels)
+    /// and returns the block. Returns the (cells_w·2^L + 1) × (cells_h·2^L + 1) lattice
+    /// heights, row-major, x first.
     pub fn eager_grid(&self, cell_x: i64, cell_y: i64, cells_w: usize, cells_h: usize) -> Vec<f64> {
         let l = self.params.levels;
         let kind = self.params.kind;
+        let smooth = self.smooth();
         let side0 = 1usize << l;
-        let (w, h) = (cells_w * side0 + 1, cells_h * side0 + 1);
-        let (x0, y0) = (cell_x << l, cell_y << l);
-        let mut f = vec![f64::NAN; w * h];
-        let px = |i: usize| x0 + i as i64;
-        let py = |j: usize| y0 + j as i64;
-        for j in (0..h).step_by(side0) {
-            for i in (0..w).step_by(side0) {
-                f[j * w + i] = self.corner(px(i), py(j));
+        let mg = TWIN_MARGIN;
+        let (bw, bh) = (
+            (cells_w + 2 * mg) * side0 + 1,
+            (cells_h + 2 * mg) * side0 + 1,
+        );
+        let (x0, y0) = ((cell_x - mg as i64) << l, (cell_y - mg as i64) << l);
+        let mut f = vec![f64::NAN; bw * bh];
+        for j in (0..bh).step_by(side0) {
+            for i in (0..bw).step_by(side0) {
+                f[j * bw + i] = self.corner(x0 + i as i64, y0 + j as i64);
             }
         }
         for n in 1..=l as usize {
-            let side = side0 >> (n - 1);
-            let half = side / 2;
+            let half = side0 >> n;
             let s = self.scale[n];
-            for j in (0..h - 1).step_by(side) {
-                for i in (0..w - 1).step_by(side) {
-                    let at = |i: usize, j: usize| j * w + i;
-                    let corners = [
-                        f[at(i, j)],
-                        f[at(i + side, j)],
-                        f[at(i, j + side)],
-                        f[at(i + side, j + side)],
-                    ];
-                    // Step (2)–(3): the four edge midpoints (a shared edge gets the same
-                    // value from either square).
-                    let edges = [
-                        (i + half, j, corners[0], corners[1]),
-                        (i + half, j + side, corners[2], corners[3]),
-                        (i, j + half, corners[0], corners[2]),
-                        (i + side, j + half, corners[1], corners[3]),
-                    ];
-                    for (ei, ej, a, b) in edges {
-                        f[at(ei, ej)] = edge(kind, a, b, self.g(n, px(ei), py(ej)), s);
-                    }
-                    // Step (4): the centre from the four corners.
-                    let (ci, cj) = (i + half, j + half);
-                    f[at(ci, cj)] = centre(kind, corners, self.g(n, px(ci), py(cj)), s);
+            let prev = f.clone();
+            // The previous level's value `d` parent spacings from pixel (i, j) along
+            // each axis, NaN off the grid.
+            let at = |i: usize, j: usize, dx: i64, dy: i64| {
+                let (pi, pj) = (i as i64 + dx * half as i64, j as i64 + dy * half as i64);
+                if pi < 0 || pj < 0 || pi >= bw as i64 || pj >= bh as i64 {
+                    f64::NAN
+                } else {
+                    prev[pj as usize * bw + pi as usize]
+                }
+            };
+            for j in (0..bh).step_by(half) {
+                for i in (0..bw).step_by(half) {
+                    let (oi, oj) = ((i / half) % 2 == 1, (j / half) % 2 == 1);
+                    let g = self.g(n, x0 + i as i64, y0 + j as i64);
+                    let v = match (oi, oj) {
+                        (false, false) => continue,
+                        (true, false) => {
+                            let taps = [-3, -1, 1, 3].map(|d| at(i, j, d, 0));
+                            rule_edge(kind, smooth, taps, g, s)
+                        }
+                        (false, true) => {
+                            let taps = [-3, -1, 1, 3].map(|d| at(i, j, 0, d));
+                            rule_edge(kind, smooth, taps, g, s)
+                        }
+                        (true, true) => {
+                            let mut taps = [[0.0; 4]; 4];
+                            for (b, row) in taps.iter_mut().enumerate() {
+                                for (a, t) in row.iter_mut().enumerate() {
+                                    *t = at(i, j, 2 * a as i64 - 3, 2 * b as i64 - 3);
+                                }
+                            }
+                            rule_centre(kind, smooth, taps, g, s)
+                        }
+                    };
+                    f[j * bw + i] = v;
                 }
             }
         }
-        f
+        let (w, h) = (cells_w * side0 + 1, cells_h * side0 + 1);
+        let (ox, oy) = (mg * side0, mg * side0);
+        (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| f[(oy + j) * bw + ox + i])
+            .collect()
     }
 
-    /// The finest lattice heights over pixels [x0, x0 + w) × [y0, y0 + h), level by level
-    /// over just the squares that cover it: each level's points are made once, from the
-    /// level before, and shared by all their children.
+    /// The finest lattice heights over pixels [x0, x0 + w) × [y0, y0 + h).
     fn window(&self, x0: i64, y0: i64, w: usize, h: usize) -> Vec<f64> {
+        self.lattice(
+            self.params.levels,
+            x0,
+            x0 + w as i64 - 1,
+            y0,
+            y0 + h as i64 - 1,
+        )
+    }
+
+    /// The level-`n` lattice heights over indices [i0, i1] × [j0, j1] (spacing
+    /// 2^(L−n) px), row-major: from the level before over the indices its rule reads
+    /// (1.5 parent spacings around), each point made once and shared by its children.
+    fn lattice(&self, n: u32, i0: i64, i1: i64, j0: i64, j1: i64) -> Vec<f64> {
         let l = self.params.levels;
-        let kind = self.params.kind;
-        let (x1, y1) = (x0 + w as i64 - 1, y0 + h as i64 - 1);
-        // Level n covers lattice indices [lo, hi] of spacing 2^(L−n) on each axis.
-        let range = |n: u32| {
-            let k = l - n;
-            (
-                floor_shr(x0, k),
-                ceil_shr(x1, k),
-                floor_shr(y0, k),
-                ceil_shr(y1, k),
-            )
-        };
-        let (mut i0, i1, mut j0, j1) = range(0);
-        let mut gw = (i1 - i0 + 1) as usize;
-        let mut grid: Vec<f64> = (j0..=j1)
-            .flat_map(|j| (i0..=i1).map(move |i| (i, j)))
-            .map(|(i, j)| self.corner(i << l, j << l))
-            .collect();
-        for n in 1..=l {
-            let k = l - n;
-            let s = self.scale[n as usize];
-            let (ni0, ni1, nj0, nj1) = range(n);
-            let nw = (ni1 - ni0 + 1) as usize;
-            let mut next = Vec::with_capacity(nw * (nj1 - nj0 + 1) as usize);
-            // Parent (level n − 1) value at level-n indices (i, j), both even.
-            let parent =
-                |i: i64, j: i64| grid[((j / 2 - j0) as usize) * gw + (i / 2 - i0) as usize];
-            for j in nj0..=nj1 {
-                let y = j << k;
-                for i in ni0..=ni1 {
-                    let x = i << k;
-                    let v = match (i & 1, j & 1) {
-                        (0, 0) => parent(i, j),
-                        (1, 0) => edge(
-                            kind,
-                            parent(i - 1, j),
-                            parent(i + 1, j),
-                            self.g(n as usize, x, y),
-                            s,
-                        ),
-                        (0, _) => edge(
-                            kind,
-                            parent(i, j - 1),
-                            parent(i, j + 1),
-                            self.g(n as usize, x, y),
-                            s,
-                        ),
-                        _ => centre(
-                            kind,
-                            [
-                                parent(i - 1, j - 1),
-                                parent(i + 1, j - 1),
-                                parent(i - 1, j + 1),
-                                parent(i + 1, j + 1),
-                            ],
-                            self.g(n as usize, x, y),
-                            s,
-                        ),
-                    };
-                    next.push(v);
-                }
-            }
-            grid = next;
-            gw = nw;
-            i0 = ni0;
-            j0 = nj0;
+        if n == 0 {
+            return (j0..=j1)
+                .flat_map(|j| (i0..=i1).map(move |i| (i, j)))
+                .map(|(i, j)| self.corner(i << l, j << l))
+                .collect();
         }
-        debug_assert_eq!((i0, j0, gw), (x0, y0, w));
-        grid
+        let kind = self.params.kind;
+        let smooth = self.smooth();
+        let k = l - n;
+        let s = self.scale[n as usize];
+        let reach = if self.smooth() { 3 } else { 1 };
+        let (pi0, pi1, pj0, pj1) = (
+            floor_shr(i0 - reach, 1),
+            ceil_shr(i1 + reach, 1),
+            floor_shr(j0 - reach, 1),
+            ceil_shr(j1 + reach, 1),
+        );
+        let parents = self.lattice(n - 1, pi0, pi1, pj0, pj1);
+        let pw = (pi1 - pi0 + 1) as usize;
+        // Parent at level-n indices (i, j), both even.
+        let parent =
+            |i: i64, j: i64| parents[((j / 2 - pj0) as usize) * pw + (i / 2 - pi0) as usize];
+        let mut out = Vec::with_capacity(((i1 - i0 + 1) * (j1 - j0 + 1)) as usize);
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let g = || self.g(n as usize, i << k, j << k);
+                let v = match (i & 1, j & 1) {
+                    (0, 0) => parent(i, j),
+                    (1, 0) if !smooth => edge(kind, parent(i - 1, j), parent(i + 1, j), g(), s),
+                    (0, 1) if !smooth => edge(kind, parent(i, j - 1), parent(i, j + 1), g(), s),
+                    (1, 1) if !smooth => centre(
+                        kind,
+                        [
+                            parent(i - 1, j - 1),
+                            parent(i + 1, j - 1),
+                            parent(i - 1, j + 1),
+                            parent(i + 1, j + 1),
+                        ],
+                        g(),
+                        s,
+                    ),
+                    (1, 0) => {
+                        rule_edge(kind, true, [-3, -1, 1, 3].map(|d| parent(i + d, j)), g(), s)
+                    }
+                    (0, _) => {
+                        rule_edge(kind, true, [-3, -1, 1, 3].map(|d| parent(i, j + d)), g(), s)
+                    }
+                    _ => {
+                        let mut taps = [[0.0; 4]; 4];
+                        for (b, row) in taps.iter_mut().enumerate() {
+                            for (a, t) in row.iter_mut().enumerate() {
+                                *t = parent(i + 2 * a as i64 - 3, j + 2 * b as i64 - 3);
+                            }
+                        }
+                        rule_centre(kind, true, taps, g(), s)
+                    }
+                };
+                out.push(v);
+            }
+        }
+        out
     }
 }
 
@@ -473,12 +578,23 @@ mod tests {
     use super::*;
 
     fn surface(kind: FractalKind, h: f64, levels: u32, seed: u32) -> FractalSurface {
+        smooth_surface(kind, false, h, levels, seed)
+    }
+
+    fn smooth_surface(
+        kind: FractalKind,
+        smooth: bool,
+        h: f64,
+        levels: u32,
+        seed: u32,
+    ) -> FractalSurface {
         FractalSurface::new(
             FractalParams {
                 h,
                 levels,
                 kind,
                 amplitude: 1.0,
+                smooth,
             },
             seed,
         )
@@ -487,11 +603,16 @@ mod tests {
 
     /// Lazy equals eager: every lattice point of a 3 × 2 block of level-0 squares at
     /// negative coordinates, from `height()` and from a region fill, is the whole-grid
-    /// recursion's value bit for bit, for rock and casting.
+    /// recursion's value bit for bit, for rock (the paper's rule and the smooth one)
+    /// and casting.
     #[test]
     fn lazy_heights_equal_the_whole_grid_recursion() {
-        for kind in [FractalKind::Rock, FractalKind::Casting] {
-            let s = surface(kind, 0.6, 5, 9);
+        for (kind, smooth) in [
+            (FractalKind::Rock, false),
+            (FractalKind::Rock, true),
+            (FractalKind::Casting, false),
+        ] {
+            let s = smooth_surface(kind, smooth, 0.6, 5, 9);
             let (cx, cy, cw, ch) = (-2i64, -7i64, 3usize, 2usize);
             let grid = s.eager_grid(cx, cy, cw, ch);
             let (w, h) = (cw * 32 + 1, ch * 32 + 1);

@@ -88,6 +88,7 @@ impl RegionTexture {
                 levels,
                 kind: FractalKind::Rock,
                 amplitude,
+                smooth: false,
             }),
             _ => None,
         }
