@@ -1306,17 +1306,7 @@ fn run(command: Command) -> Result<()> {
                     }
                     Rule::Synth => {
                         if let Some(p) = &h.synth {
-                            println!(
-                                "rule        synth: {} levels, k = {}, {} passes ({} on the finest), jitter {} on {} levels, coherence {}, {}-d appearance",
-                                p.levels,
-                                p.k,
-                                p.passes,
-                                p.fine_passes,
-                                p.jitter,
-                                p.jittered(p.levels),
-                                p.coherence,
-                                p.appearance_dims
-                            );
+                            println!("rule        synth: {}", p.describe());
                         }
                     }
                     Rule::Rsgf => {

@@ -245,18 +245,7 @@ pub fn bake_synth(
     let model = synth_model(ex, params)?;
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     let p = &model.params;
-    progress(&format!(
-        "exemplar {w}×{h}×{c}: {} levels (coarsest spacing {} px), k = {}, {} passes ({} on the finest), jitter {} on {} levels, coherence {}, {}-d appearance",
-        p.levels,
-        1usize << (p.levels - 1),
-        p.k,
-        p.passes,
-        p.fine_passes,
-        p.jitter,
-        p.jittered(p.levels),
-        p.coherence,
-        p.appearance_dims
-    ));
+    progress(&format!("exemplar {w}×{h}×{c}: {}", p.describe()));
     let extra: Vec<Vec<f32>> = model
         .levels
         .iter()

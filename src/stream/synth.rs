@@ -144,6 +144,23 @@ impl SynthParams {
         by_spacing.max(1)
     }
 
+    /// One line for bake progress and `info`: levels, candidates, passes, jitter,
+    /// coherence and appearance dimensions.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} levels (coarsest spacing {} px), k = {}, {} passes ({} on the finest), jitter {} on {} levels, coherence {}, {}-d appearance",
+            self.levels,
+            1usize << self.levels.saturating_sub(1),
+            self.k,
+            self.passes,
+            self.fine_passes,
+            self.jitter,
+            self.jittered(self.levels),
+            self.coherence,
+            self.appearance_dims
+        )
+    }
+
     /// Checks the ranges (not the exemplar).
     pub fn validate(&self) -> Result<()> {
         if !(1..=12).contains(&self.levels) {
@@ -503,15 +520,16 @@ impl SynthModel {
                     coords.push(here);
                     continue;
                 }
-                let mut coherent = true;
-                for (n, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
-                    let c = grid.at(x + dx as i64, y + dy as i64);
-                    coherent &= c == [here[0] + hs * dx, here[1] + hs * dy];
-                    own[n * dims..(n + 1) * dims].copy_from_slice(appearance(c));
-                }
+                let coherent = NEIGHBOURS.iter().all(|&(dx, dy)| {
+                    grid.at(x + dx as i64, y + dy as i64) == [here[0] + hs * dx, here[1] + hs * dy]
+                });
                 if coherent && skip_coherent {
                     coords.push(here);
                     continue;
+                }
+                for (n, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
+                    let c = grid.at(x + dx as i64, y + dy as i64);
+                    own[n * dims..(n + 1) * dims].copy_from_slice(appearance(c));
                 }
                 // Squared distance of candidate u's neighbourhood, or None once it
                 // reaches `bound`.
