@@ -193,8 +193,12 @@ fn report(name: &str, method: &str, ex: &Raster, out: &Raster, time: String) {
         }
     }
     let seams = s.seams.as_ref().map_or(f64::NAN, |p| p.worst);
+    let seam_at = s
+        .seams
+        .as_ref()
+        .map_or(String::new(), |p| format!(" ({} {})", p.axis, p.offset));
     println!(
-        "{name:<24} {method:<18} coherence {:.3}  completeness {:.3}  self-rep {:.3}  copy {:.3}  seam {:.3}  W1 {:.3}  PSD {:.3}  sd {:.3}  {time}",
+        "{name:<24} {method:<18} coherence {:.3}  completeness {:.3}  self-rep {:.3}  copy {:.3}  seam {:.3}{seam_at}  W1 {:.3}  PSD {:.3}  sd {:.3}  {time}",
         s.coherence, s.completeness, s.self_repetition, s.copy_score, seams, w1, psd, sd
     );
 }

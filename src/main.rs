@@ -24,7 +24,7 @@ use surftile::shade::ShadeOptions;
 use surftile::source::SourceSpec;
 use surftile::stats::compare;
 use surftile::stats::structure::structure;
-use surftile::stream::{Metric, SynthParams};
+use surftile::stream::{Join, Metric, SynthParams};
 use surftile::stream::{Region, Surface};
 use surftile::{Error, Result};
 
@@ -230,9 +230,17 @@ enum Command {
         /// RSGF: gap candidates within ± this many pixels of a lattice multiple.
         #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
         tolerance: usize,
-        /// RSGF: border measure of the gap filling.
-        #[arg(long, value_enum, default_value_t = Metric::Ssd)]
-        metric: Metric,
+        /// RSGF: border measure of the gap filling; default ncc with --stochastic, ssd
+        /// on a lattice.
+        #[arg(long, value_enum)]
+        metric: Option<Metric>,
+        /// RSGF: how patches join across block edges.
+        #[arg(long, value_enum, default_value_t = Join::Cut)]
+        join: Join,
+        /// RSGF: with cuts, the patches ramp over 2 × this many pixels around the cut
+        /// (0: a hard cut); below the border.
+        #[arg(long, default_value_t = surftile::stream::rsgf::DEFAULT_FEATHER, allow_negative_numbers = true)]
+        feather: usize,
         /// RSGF: stochastic mode, v1 = (1, 0) and v2 = (0, 1), no lattice estimation.
         #[arg(long)]
         stochastic: bool,
@@ -873,6 +881,8 @@ fn run(command: Command) -> Result<()> {
             border,
             tolerance,
             metric,
+            join,
+            feather,
             stochastic,
             colours,
             levels,
@@ -936,13 +946,15 @@ fn run(command: Command) -> Result<()> {
                 border_px: border,
                 tolerance_px: tolerance,
                 metric,
+                join,
+                feather_px: feather,
                 stochastic,
             };
             if method != Method::Rsgf && rsgf != RsgfOptions::default() {
                 return Err(Error::param(
                     "method",
                     method,
-                    "rsgf when --block, --border, --tolerance, --metric or --stochastic is given",
+                    "rsgf when --block, --border, --tolerance, --metric, --join, --feather or --stochastic is given",
                 ));
             }
             builder = builder.rsgf(rsgf);
@@ -1312,7 +1324,7 @@ fn run(command: Command) -> Result<()> {
                     Rule::Rsgf => {
                         if let Some(p) = &h.rsgf {
                             println!(
-                                "rule        rsgf on lattice v1 = ({}, {}), v2 = ({}, {}); blocks of {} px, border {} px, tolerance ±{} px, {:?} matching",
+                                "rule        rsgf on lattice v1 = ({}, {}), v2 = ({}, {}); blocks of {} px, border {} px, tolerance ±{} px, {:?} matching, joined by {}",
                                 p.v1.0,
                                 p.v1.1,
                                 p.v2.0,
@@ -1320,7 +1332,8 @@ fn run(command: Command) -> Result<()> {
                                 p.block_px,
                                 p.border_px,
                                 p.tolerance_px,
-                                p.metric
+                                p.metric,
+                                surftile::analysis::rsgf::join_text(p)
                             );
                         }
                     }

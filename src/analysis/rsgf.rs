@@ -10,7 +10,7 @@ use crate::analysis::translation::{
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
 use crate::error::Result;
 use crate::raster::Raster;
-use crate::stream::{Metric, RsgfModel, RsgfParams};
+use crate::stream::{Join, Metric, RsgfModel, RsgfParams};
 
 /// What the user asked for; the lattice is resolved by `bake`.
 #[derive(Clone, Debug, PartialEq)]
@@ -21,8 +21,13 @@ pub struct RsgfOptions {
     pub border_px: usize,
     /// Gap-candidate tolerance in pixels (default 3).
     pub tolerance_px: usize,
-    /// Border measure (default SSD).
-    pub metric: Metric,
+    /// Border measure; default NCC in stochastic mode, SSD on a lattice (the paper's):
+    /// see [`RsgfParams::stochastic`].
+    pub metric: Option<Metric>,
+    /// How patches join (default: minimum-error cuts).
+    pub join: Join,
+    /// Ramp half-width around a cut in pixels (default 2).
+    pub feather_px: usize,
     /// Stochastic mode: v₁ = (1, 0), v₂ = (0, 1), no estimation.
     pub stochastic: bool,
 }
@@ -34,7 +39,9 @@ impl Default for RsgfOptions {
             block_px: p.block_px,
             border_px: p.border_px,
             tolerance_px: p.tolerance_px,
-            metric: p.metric,
+            metric: None,
+            join: p.join,
+            feather_px: p.feather_px,
             stochastic: false,
         }
     }
@@ -47,10 +54,27 @@ impl RsgfOptions {
             block_px: self.block_px,
             border_px: self.border_px,
             tolerance_px: self.tolerance_px,
-            metric: self.metric,
+            metric: self.metric.unwrap_or(if self.stochastic {
+                RsgfParams::stochastic().metric
+            } else {
+                RsgfParams::new(v1, v2).metric
+            }),
+            join: self.join,
+            feather_px: self.feather_px,
             v1,
             v2,
         }
+    }
+}
+
+/// How the patches of `params` join, in words.
+pub fn join_text(params: &RsgfParams) -> String {
+    match params.join {
+        Join::Cut => format!(
+            "minimum-error cuts ramped over {} px",
+            2 * params.feather_px
+        ),
+        Join::Blend => "linear blending".into(),
     }
 }
 
@@ -112,12 +136,13 @@ pub(crate) fn bake(
         .collect();
     let texels: Vec<Vec<f32>> = model.levels.iter().map(|l| l.data.clone()).collect();
     progress(&format!(
-        "exemplar {w}×{h}×{c}, {} mip levels; blocks of {} px, border {} px, tolerance ±{} px, {:?}",
+        "exemplar {w}×{h}×{c}, {} mip levels; blocks of {} px, border {} px, tolerance ±{} px, {:?}, {}",
         levels.len(),
         params.block_px,
         params.border_px,
         params.tolerance_px,
-        params.metric
+        params.metric,
+        join_text(&params)
     ));
     let (exemplar, spacing_um, seed, bake_text) = header_base;
     let header = BankHeader {
@@ -136,7 +161,7 @@ pub(crate) fn bake(
         lut_z_range: 0.0,
         exemplar,
         bake: format!(
-            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} stochastic={} {bake_text}",
+            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} join={:?} feather={} stochastic={} {bake_text}",
             v1.0,
             v1.1,
             v2.0,
@@ -145,6 +170,8 @@ pub(crate) fn bake(
             params.border_px,
             params.tolerance_px,
             params.metric,
+            params.join,
+            params.feather_px,
             options.stochastic
         ),
         seam_costs: Vec::new(),

@@ -18,7 +18,7 @@ use std::ops::Range;
 
 pub use blend::BlendSurface;
 pub use pages::{Page, PageKey, PageStats, PageStreamer, View};
-pub use rsgf::{Metric, RsgfModel, RsgfParams, RsgfSurface};
+pub use rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface};
 pub use synth::{SynthParams, SynthSurface};
 pub use toroidal::ToroidalSurface;
 

@@ -20,8 +20,16 @@ use crate::hash::hash_cell;
 use crate::lattice::Lattice;
 use crate::raster::Raster;
 
-use super::RsgfParams;
 use super::gap::GapTables;
+use super::{Join, RsgfParams};
+
+/// An edge between two neighbouring blocks: `V` (i, j) between blocks (i − 1, j) and
+/// (i, j), `H` (i, j) between (i, j − 1) and (i, j).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum Edge {
+    V,
+    H,
+}
 
 /// Hash stream of the random picks (ASCII "RSGF").
 const STREAM_RANDOM: u32 = 0x5253_4746;
@@ -279,16 +287,36 @@ impl RsgfModel {
     }
 
     /// Channel values of pixel (px, py), from the positions `pick(i, j)` of the blocks
-    /// around it. The definition every fill must reproduce bit for bit.
+    /// around it and, for [`Join::Cut`], the cuts `cut(edge, i, j, t)` of the edges
+    /// between them ([`RsgfModel::edge_cut`]). The definition every fill must reproduce
+    /// bit for bit.
     pub(crate) fn pixel(
         &self,
         px: i64,
         py: i64,
         pick: &mut dyn FnMut(i64, i64) -> u32,
+        cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
         out: &mut [f32],
     ) {
         let c = self.c;
         let l0 = &self.levels[0];
+        if self.params.join == Join::Cut {
+            let rows = self.split(Edge::H, py, px.div_euclid(self.b), px, cut);
+            if rows[1].1 == 0.0 {
+                return self.row_pixel(rows[0].0, px, py, pick, cut, out);
+            }
+            let mut v = [0.0f32; 4];
+            out[..c].fill(0.0);
+            for (j, wy) in rows {
+                if wy != 0.0 {
+                    self.row_pixel(j, px, py, pick, cut, &mut v);
+                    for (o, v) in out[..c].iter_mut().zip(&v[..c]) {
+                        *o += wy * v;
+                    }
+                }
+            }
+            return;
+        }
         out[..c].fill(0.0);
         self.taps(
             self.axis(px),
@@ -303,6 +331,152 @@ impl RsgfModel {
                 }
             },
         );
+    }
+
+    /// Pixel (px, py) of block row j alone: its patches joined along the cuts of the
+    /// vertical edges of that row (`R_j` of [`RsgfModel::edge_cut`]).
+    #[inline]
+    fn row_pixel(
+        &self,
+        j: i64,
+        px: i64,
+        py: i64,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
+        out: &mut [f32],
+    ) {
+        let c = self.c;
+        let l0 = &self.levels[0];
+        let (oy, b) = (j * self.b - self.o, self.b);
+        let mut at = |i: i64| {
+            let (qx, qy) = self.position(pick(i, j));
+            ((qy + (py - oy) as usize) * l0.w + qx + (px - (i * b - self.o)) as usize) * c
+        };
+        let cols = self.split(Edge::V, px, j, py, cut);
+        if cols[1].1 == 0.0 {
+            let at = at(cols[0].0);
+            out[..c].copy_from_slice(&l0.data[at..at + c]);
+            return;
+        }
+        out[..c].fill(0.0);
+        for (i, w) in cols {
+            if w != 0.0 {
+                let at = at(i);
+                for (o, v) in out[..c].iter_mut().zip(&l0.data[at..at + c]) {
+                    *o += w * v;
+                }
+            }
+        }
+    }
+
+    /// The blocks (with weights) that show coordinate `s` along one axis when patches
+    /// join along cuts: a vertical edge's (`Edge::V`, s = x) in block row `fixed`, a
+    /// horizontal edge's (`Edge::H`, s = y) in block column `fixed`; `cross` is the
+    /// other coordinate. Away from a cut one block has weight 1 (the second entry 0);
+    /// within `feather_px` of it the two ramp linearly over 2·feather pixels.
+    #[inline]
+    fn split(
+        &self,
+        edge: Edge,
+        s: i64,
+        fixed: i64,
+        cross: i64,
+        cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
+    ) -> [(i64, f32); 2] {
+        let (b, o) = (self.b, self.o);
+        let bs = s.div_euclid(b);
+        let u = s - bs * b;
+        let (e, k) = if u < o {
+            (bs, u + o)
+        } else if u >= b - o {
+            (bs + 1, u - (b - o))
+        } else {
+            return [(bs, 1.0), (bs, 0.0)];
+        };
+        let (i, j) = match edge {
+            Edge::V => (e, fixed),
+            Edge::H => (fixed, e),
+        };
+        let along = (cross - (fixed * b - o)) as usize;
+        let d = k - i64::from(cut(edge, i, j, along));
+        let f = self.params.feather_px as i64;
+        let w = if f == 0 {
+            f32::from(u8::from(d >= 0))
+        } else {
+            ((d as f32 + 0.5) / (2 * f) as f32 + 0.5).clamp(0.0, 1.0)
+        };
+        if w == 0.0 {
+            [(e - 1, 1.0), (e, 0.0)]
+        } else if w == 1.0 {
+            [(e, 1.0), (e - 1, 0.0)]
+        } else {
+            [(e - 1, 1.0 - w), (e, w)]
+        }
+    }
+
+    /// The minimum-error cut of `edge` (i, j) (Efros & Freeman 2001; the error is seed
+    /// 000 §3.2.1 eq. (1)'s squared difference, summed over channels), through the
+    /// 2·o pixels of overlap across the edge, as an 8-connected path found by dynamic
+    /// programming. Returns, for each t along the edge, the first pixel k across it that
+    /// shows the block after the edge; those before show the block before. The path
+    /// keeps `feather_px` pixels from the overlap's sides, so that the ramp around it
+    /// stays inside. Ties go to the smaller k.
+    ///
+    /// - `Edge::V` (i, j), between blocks (i − 1, j) and (i, j): along the whole height
+    ///   E = B + 2·o of block row j's patches, from those two patches (`pick`).
+    /// - `Edge::H` (i, j), between block rows j − 1 and j, within block column i: along
+    ///   x in [i·B, (i + 1)·B), from the two rows R_{j−1} and R_j as their own vertical
+    ///   cuts (`cut`) compose them, so every pixel of a corner belongs to one row. The
+    ///   path starts at the middle of the overlap at x = i·B and ends beside it at
+    ///   (i + 1)·B, so the paths of neighbouring block columns join. Entries outside
+    ///   that span hold the middle.
+    pub(crate) fn edge_cut(
+        &self,
+        edge: Edge,
+        i: i64,
+        j: i64,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
+    ) -> Vec<u16> {
+        let c = self.c;
+        let f = self.params.feather_px;
+        let (b, o) = (self.b as usize, self.o as usize);
+        let m = 2 * o - 2 * f;
+        match edge {
+            Edge::V => {
+                let l0 = &self.levels[0];
+                let (ax, ay) = self.position(pick(i - 1, j));
+                let (bx, by) = self.position(pick(i, j));
+                let path = min_cut(b + 2 * o, m, None, |t, k| {
+                    let (pa, pb) = (
+                        ((ay + t) * l0.w + ax + b + f + k) * c,
+                        ((by + t) * l0.w + bx + f + k) * c,
+                    );
+                    (0..c)
+                        .map(|ch| (l0.data[pa + ch] as f64 - l0.data[pb + ch] as f64).powi(2))
+                        .sum()
+                });
+                path.into_iter().map(|k| (k + f) as u16).collect()
+            }
+            Edge::H => {
+                let (x0, y0) = (i * self.b, j * self.b - self.o);
+                let (mut va, mut vb) = ([0.0f32; 4], [0.0f32; 4]);
+                let pin = o - f;
+                let path = min_cut(b, m, Some(pin), |t, k| {
+                    let (x, y) = (x0 + t as i64, y0 + (f + k) as i64);
+                    self.row_pixel(j - 1, x, y, pick, cut, &mut va);
+                    self.row_pixel(j, x, y, pick, cut, &mut vb);
+                    (0..c)
+                        .map(|ch| (va[ch] as f64 - vb[ch] as f64).powi(2))
+                        .sum()
+                });
+                let mut full = vec![o as u16; b + 2 * o];
+                for (t, k) in path.into_iter().enumerate() {
+                    full[o + t] = (k + f) as u16;
+                }
+                full
+            }
+        }
     }
 
     /// Calls `f(weight, position, origin)` for each block with a non-zero weight,
@@ -359,6 +533,10 @@ impl RsgfModel {
     /// `RsgfModel::pixel`. The slow reference that streamed fills are tested against.
     pub fn synthesize(&self, seed: u32, width: usize, height: usize) -> Raster {
         let (i0, i1) = self.block_range(0, width as i64 - 1);
+        // Cuts: one more block column each side, for the horizontal cuts of the outer
+        // ones (they cut between rows composed across both of their vertical edges).
+        let cut = i64::from(self.params.join == Join::Cut);
+        let (i0, i1) = (i0 - cut, i1 + cut);
         let (j0, j1) = self.block_range(0, height as i64 - 1);
         let gw = (i1 - i0 + 1) as usize;
         let gh = (j1 - j0 + 1) as usize;
@@ -379,15 +557,97 @@ impl RsgfModel {
         }
         let mut out = Raster::zeros(width, height, self.c);
         let c = self.c;
-        let mut lookup = |i: i64, j: i64| grid[(j - j0) as usize * gw + (i - i0) as usize];
+        let lookup = |i: i64, j: i64| grid[(j - j0) as usize * gw + (i - i0) as usize];
+        // Vertical cuts first: the horizontal ones are cut between rows they compose.
+        let mut cuts: std::collections::HashMap<(Edge, i64, i64), Vec<u16>> =
+            std::collections::HashMap::new();
+        if self.params.join == Join::Cut {
+            for edge in [Edge::V, Edge::H] {
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        if (edge == Edge::V && i > i0)
+                            || (edge == Edge::H && j > j0 && i > i0 && i < i1)
+                        {
+                            let path =
+                                self.edge_cut(edge, i, j, &mut { lookup }, &mut |e, i, j, t| {
+                                    cuts[&(e, i, j)][t]
+                                });
+                            cuts.insert((edge, i, j), path);
+                        }
+                    }
+                }
+            }
+        }
+        let mut cut = |e: Edge, i: i64, j: i64, t: usize| cuts[&(e, i, j)][t];
         for y in 0..height {
             for x in 0..width {
                 let at = (y * width + x) * c;
-                self.pixel(x as i64, y as i64, &mut lookup, &mut out.data[at..at + c]);
+                self.pixel(
+                    x as i64,
+                    y as i64,
+                    &mut { lookup },
+                    &mut cut,
+                    &mut out.data[at..at + c],
+                );
             }
         }
         out
     }
+}
+
+/// The minimum-cost 8-connected path through an n × m cost grid `err(t, k)`, one k
+/// per t (t along, k across), by dynamic programming; ties go to the smaller k. With
+/// `pin`, the path starts at k = pin and ends within one of it (so that it can go on
+/// at pin).
+fn min_cut(
+    n: usize,
+    m: usize,
+    pin: Option<usize>,
+    mut err: impl FnMut(usize, usize) -> f64,
+) -> Vec<usize> {
+    let mut cost = vec![0.0f64; n * m];
+    for t in 0..n {
+        for k in 0..m {
+            let before = if t == 0 {
+                match pin {
+                    Some(p) if p != k => f64::INFINITY,
+                    _ => 0.0,
+                }
+            } else {
+                cost[(t - 1) * m + k.saturating_sub(1)..(t - 1) * m + (k + 2).min(m)]
+                    .iter()
+                    .fold(f64::INFINITY, |x, &y| x.min(y))
+            };
+            // Unreachable cells need no error.
+            cost[t * m + k] = if before.is_finite() {
+                before + err(t, k)
+            } else {
+                f64::INFINITY
+            };
+        }
+    }
+    let argmin = |row: &[f64], lo: usize| {
+        let mut best = lo;
+        for (k, &v) in row.iter().enumerate() {
+            if v < row[best - lo] {
+                best = lo + k;
+            }
+        }
+        best
+    };
+    let (lo, hi) = match pin {
+        Some(p) => (p.saturating_sub(1), (p + 2).min(m)),
+        None => (0, m),
+    };
+    let mut path = vec![0usize; n];
+    let mut k = argmin(&cost[(n - 1) * m + lo..(n - 1) * m + hi], lo);
+    path[n - 1] = k;
+    for t in (0..n - 1).rev() {
+        let lo = k.saturating_sub(1);
+        k = argmin(&cost[t * m + lo..t * m + (k + 2).min(m)], lo);
+        path[t] = k;
+    }
+    path
 }
 
 /// Adds `w ·` the bilinear sample of level `lv` at texel coordinates (x, y) (clamped
@@ -442,6 +702,71 @@ pub(crate) fn mip_chain(exemplar: &Raster) -> Vec<Level> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cheapest 8-connected path by exhaustive search: every path, its cost.
+    fn brute_cut(err: &[Vec<f64>], pin: Option<usize>) -> f64 {
+        let mut best = f64::INFINITY;
+        let mut path = vec![0usize; err.len()];
+        fn walk(
+            t: usize,
+            err: &[Vec<f64>],
+            pin: Option<usize>,
+            path: &mut Vec<usize>,
+            cost: f64,
+            best: &mut f64,
+        ) {
+            let n = err.len();
+            if t == n {
+                let end_ok = pin.is_none_or(|p| path[n - 1].abs_diff(p) <= 1);
+                if end_ok && cost < *best {
+                    *best = cost;
+                }
+                return;
+            }
+            for k in 0..err[0].len() {
+                let ok = if t == 0 {
+                    pin.is_none_or(|p| p == k)
+                } else {
+                    k.abs_diff(path[t - 1]) <= 1
+                };
+                if ok {
+                    path[t] = k;
+                    walk(t + 1, err, pin, path, cost + err[t][k], best);
+                }
+            }
+        }
+        walk(0, err, pin, &mut path, 0.0, &mut best);
+        best
+    }
+
+    /// The dynamic programme finds a path as cheap as the exhaustive search's, that is
+    /// 8-connected, starts at the pin and ends beside it.
+    #[test]
+    fn cuts_are_the_cheapest_paths() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for trial in 0..40 {
+            let (n, m) = (3 + trial % 5, 2 + trial % 4);
+            let err: Vec<Vec<f64>> = (0..n)
+                .map(|_| (0..m).map(|_| (rnd() * 4.0).floor()).collect())
+                .collect();
+            for pin in [None, Some(trial % m)] {
+                let path = min_cut(n, m, pin, |t, k| err[t][k]);
+                let cost: f64 = path.iter().enumerate().map(|(t, &k)| err[t][k]).sum();
+                assert_eq!(cost, brute_cut(&err, pin), "trial {trial}, pin {pin:?}");
+                assert!(path.windows(2).all(|w| w[0].abs_diff(w[1]) <= 1));
+                if let Some(p) = pin {
+                    assert_eq!(path[0], p);
+                    assert!(path[n - 1].abs_diff(p) <= 1);
+                }
+            }
+        }
+    }
 
     /// The overflow-free residue equals [`Lattice::reduce`]'s wherever that one does not
     /// overflow, and stays in range at |p| ~ 2⁵² with a lattice whose C is 1.
