@@ -4,6 +4,11 @@
 //! output size, 2 threads each (target: ≥ 20× faster); the fill alone against a memcpy
 //! of the same bytes (target: ≥ 1 M samples/s on 2 cores); one `height()` at a point.
 //!
+//! The same for stochastic RSGF with cuts (`rsgf_*`), the method `auto` picks for
+//! structured stochastic exemplars: bake (the model: mip chain, gap tables, spectra)
+//! and fill together, the fill alone (a fresh region each time, so no gap is
+//! remembered), and one sample at a random far point (its gaps and cuts solved cold).
+//!
 //! texture-synthesis takes about 40 s per 1024² output here, so its 10 samples alone
 //! take several minutes: `cargo bench --bench synth -- 'synth/(bake|fill|height|baseline_m)'`
 //! leaves it out.
@@ -19,7 +24,7 @@ use surftile::Raster;
 use surftile::analysis::synth::synth_model;
 use surftile::io::{ReadOptions, read_image};
 use surftile::stream::synth::SynthSurface;
-use surftile::stream::{Region, Surface, SynthParams};
+use surftile::stream::{Region, RsgfParams, RsgfSurface, Surface, SynthParams};
 use texture_synthesis as ts;
 
 const SIDE: usize = 1024;
@@ -70,6 +75,30 @@ fn bench(c: &mut Criterion) {
             i += 1;
             let x = (i.wrapping_mul(0x9E37_79B9) % 1_000_000) as f64 + 0.5;
             surface.sample_footprint(black_box(x), black_box(-3e8 + x), 1.0, &mut px);
+            px[0]
+        })
+    });
+    let rsgf = RsgfParams::stochastic();
+    g.bench_function("rsgf_bake_and_fill_1024_rgb", |b| {
+        b.iter(|| {
+            let s = RsgfSurface::new(black_box(&ex), &rsgf, 1).unwrap();
+            s.fill(&region, &mut out).unwrap();
+        })
+    });
+    let rsgf_surface = RsgfSurface::new(&ex, &rsgf, 1).unwrap();
+    let mut k = 0u64;
+    g.bench_function("rsgf_fill_1024_rgb_2_threads", |b| {
+        b.iter(|| {
+            k += 1;
+            let far = Region::new(-1e9 + (k * 4096) as f64, 7e8, SIDE, SIDE);
+            rsgf_surface.fill(black_box(&far), &mut out).unwrap()
+        })
+    });
+    g.bench_function("rsgf_height_at_a_point", |b| {
+        b.iter(|| {
+            i += 1;
+            let x = (i.wrapping_mul(0x9E37_79B9) % 1_000_000_000) as f64 + 0.5;
+            rsgf_surface.sample_footprint(black_box(x), black_box(-3e8 + x), 1.0, &mut px);
             px[0]
         })
     });

@@ -17,6 +17,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use surftile::analysis::level::level_plane;
+use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
@@ -34,6 +35,18 @@ struct Args {
     /// Seed of both syntheses.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// surftile's method: synth, or rsgf (stochastic mode).
+    #[arg(long, default_value = "synth")]
+    method: String,
+    /// RSGF: block side (0: the default).
+    #[arg(long, default_value_t = 0)]
+    block: usize,
+    /// RSGF: border (0: the default).
+    #[arg(long, default_value_t = 0)]
+    border: usize,
+    /// RSGF: cut feather (negative: the default).
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
+    feather: i64,
     /// Skip texture-synthesis (slow).
     #[arg(long)]
     no_embark: bool,
@@ -91,8 +104,29 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     } else {
         Leveling::None
     };
+    let method = match args.method.as_str() {
+        "synth" => Method::Synth,
+        "rsgf" => Method::Rsgf,
+        other => return Err(format!("--method {other}: expected synth or rsgf").into()),
+    };
     let baker = Baker::builder()
-        .method(Method::Synth)
+        .method(method)
+        .rsgf(RsgfOptions {
+            stochastic: true,
+            block_px: if args.block > 0 {
+                args.block
+            } else {
+                RsgfOptions::default().block_px
+            },
+            border_px: if args.border > 0 {
+                args.border
+            } else {
+                RsgfOptions::default().border_px
+            },
+            feather_px: usize::try_from(args.feather)
+                .unwrap_or(RsgfOptions::default().feather_px),
+            ..RsgfOptions::default()
+        })
         .leveling(leveling)
         .seed(args.seed)
         .synth(SynthParams {
@@ -122,12 +156,12 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     let synth = Raster::from_vec(n, n, ex.channels, data)?;
     report(
         &name,
-        "synth",
+        &args.method,
         &ex,
         &synth,
         format!("bake {baked:.2} s + fill {filled:.2} s"),
     );
-    save(args, &name, "synth", &ex, &synth)?;
+    save(args, &name, &args.method, &ex, &synth)?;
     if !args.no_embark {
         let (lo, hi) = ex
             .data

@@ -462,10 +462,11 @@ impl Baker {
             Method::Auto => {
                 let choice = self.choose_method(image, source)?;
                 progress(&format!("auto: {}", choice.reason));
-                let baker = Baker {
+                let mut baker = Baker {
                     method: choice.method,
                     ..self.clone()
                 };
+                baker.rsgf.stochastic |= choice.stochastic;
                 return baker.bake(image, source, progress);
             }
             Method::Rpn | Method::Adsn => {}

@@ -42,7 +42,10 @@ fn measured_rough_maps_pick_rpn() {
 }
 
 /// Photos of gravel, grass, stone, cracks, rocks, mud and bricks: random phases
-/// destroy their objects' edges (edge ratio above the bar), so auto never picks rpn.
+/// destroy their objects' edges (edge ratio above the bar), so auto never picks rpn; it
+/// picks stochastic RSGF, which scores better than rpn (and synth) on coherence on
+/// every one of them (`examples/structure_figures.rs`; the figures are in
+/// `src/analysis/auto.rs`).
 #[test]
 fn structured_photos_never_pick_rpn() {
     for rel in [
@@ -56,7 +59,24 @@ fn structured_photos_never_pick_rpn() {
     ] {
         let (method, reason, _) = choice(rel);
         assert_ne!(method, Method::Rpn, "{rel}: {reason}");
+        assert!(
+            method == Method::Rsgf && reason.contains("rsgf --stochastic"),
+            "{rel}: {reason}"
+        );
     }
+}
+
+/// A structured exemplar too small for RSGF's 60-px patches (a 48 × 96 crop of the
+/// crack photo) goes to synth, and the reason says why.
+#[test]
+fn a_small_structured_exemplar_picks_synth() {
+    let image = read_image("tests/data/gimp-crack.png".as_ref(), &ReadOptions::default()).unwrap();
+    let baker = Baker::builder().build().unwrap();
+    let (ex, _) = baker.preprocess(&image, "crack").unwrap();
+    let crop = ex.crop(10, 20, 48, 96).unwrap();
+    let c = choose_method(&crop, 0);
+    assert_eq!(c.method, Method::Synth, "{}", c.reason);
+    assert!(c.reason.contains("no room for rsgf") && c.reason.contains("48×96"), "{}", c.reason);
 }
 
 /// A tiled pattern (a 24 × 16 random motif repeated, with a little noise) repeats on a

@@ -26,7 +26,7 @@ use lru::LruCache;
 use serde::{Deserialize, Serialize};
 
 use model::Edge;
-pub use model::RsgfModel;
+pub use model::{MAX_EXEMPLAR_PIXELS, RsgfModel};
 
 use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 use crate::bank::{Bank, Rule};
