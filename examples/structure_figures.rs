@@ -123,8 +123,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             } else {
                 RsgfOptions::default().border_px
             },
-            feather_px: usize::try_from(args.feather)
-                .unwrap_or(RsgfOptions::default().feather_px),
+            feather_px: usize::try_from(args.feather).unwrap_or(RsgfOptions::default().feather_px),
             ..RsgfOptions::default()
         })
         .leveling(leveling)

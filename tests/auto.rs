@@ -70,13 +70,21 @@ fn structured_photos_never_pick_rpn() {
 /// crack photo) goes to synth, and the reason says why.
 #[test]
 fn a_small_structured_exemplar_picks_synth() {
-    let image = read_image("tests/data/gimp-crack.png".as_ref(), &ReadOptions::default()).unwrap();
+    let image = read_image(
+        "tests/data/gimp-crack.png".as_ref(),
+        &ReadOptions::default(),
+    )
+    .unwrap();
     let baker = Baker::builder().build().unwrap();
     let (ex, _) = baker.preprocess(&image, "crack").unwrap();
     let crop = ex.crop(10, 20, 48, 96).unwrap();
     let c = choose_method(&crop, 0);
     assert_eq!(c.method, Method::Synth, "{}", c.reason);
-    assert!(c.reason.contains("no room for rsgf") && c.reason.contains("48×96"), "{}", c.reason);
+    assert!(
+        c.reason.contains("no room for rsgf") && c.reason.contains("48×96"),
+        "{}",
+        c.reason
+    );
 }
 
 /// A tiled pattern (a 24 × 16 random motif repeated, with a little noise) repeats on a
