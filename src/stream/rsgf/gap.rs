@@ -17,6 +17,15 @@
 //! on the model and the block only, so every fill makes the same one.
 //!
 //! Ties go to the smallest position index (row, then column).
+//!
+//! **Large exemplars, coarse to fine.** With every position a candidate (stochastic
+//! mode), the FFT correlation costs O(W·H·log) per gap: 0.15 s on a 1024² RGB photo.
+//! Above [`COARSE_ABOVE`] pixels the search runs first on the exemplar box-filtered by
+//! a power of two s (to at most 256² pixels), with the block, border and the gap's
+//! border scaled alike; the [`COARSE_KEEP`] best coarse positions then have every fine
+//! position within ±s of their own scored exactly, and the best of those wins. So the
+//! pick is the exact best of a neighbourhood of the coarse winners, not of the whole
+//! exemplar.
 
 use std::sync::Mutex;
 
@@ -28,8 +37,21 @@ use crate::analysis::ncc::{FLAT, integral};
 use crate::fft::Fft2;
 use crate::raster::Raster;
 
+/// Exemplars above this many pixels search many-candidate gaps coarse to fine.
+pub const COARSE_ABOVE: usize = 256 * 256;
+/// Coarse positions whose fine neighbourhoods are scored exactly.
+pub const COARSE_KEEP: usize = 8;
+
+/// The coarse search of a large exemplar: its tables at 1/s.
+struct Coarse {
+    s: usize,
+    tables: GapTables,
+}
+
 /// Per-exemplar tables of the gap search.
 pub(crate) struct GapTables {
+    /// Tables of the exemplar at 1/s, above [`COARSE_ABOVE`] pixels.
+    coarse: Option<Box<Coarse>>,
     w: usize,
     h: usize,
     c: usize,
@@ -105,6 +127,7 @@ impl GapTables {
             spectra.push(crate::fft::forward_real(&mut plan, &plane));
         }
         GapTables {
+            coarse: coarse_tables(ex, params),
             w,
             h,
             c,
@@ -250,6 +273,22 @@ impl GapTables {
         self.scores_from(g, cands, &cross)
     }
 
+    /// The best candidate for border `g` (lowest score, ties to the first in `cands`,
+    /// which is sorted): by scoring every one, or coarse to fine when the exemplar is
+    /// large and the candidates are more than a quarter of all positions.
+    pub(crate) fn best(&self, g: &[f64], cands: &[u32]) -> u32 {
+        let ny = self.h + 1 - self.ext;
+        if let Some(coarse) = &self.coarse
+            && cands.len() * 4 > self.nx * ny
+        {
+            let fine = coarse.candidates(self, g, cands);
+            if !fine.is_empty() {
+                return argmin(&fine, &self.scores(g, &fine));
+            }
+        }
+        argmin(cands, &self.scores(g, cands))
+    }
+
     /// Scores from precomputed cross terms.
     pub(crate) fn scores_from(&self, g: &[f64], cands: &[u32], cross: &[f64]) -> Vec<f64> {
         let c = self.c;
@@ -333,14 +372,111 @@ impl RsgfModel {
     /// matches the border its four random neighbours compose (§4.2).
     pub fn solve_gap(&self, seed: u32, i: i64, j: i64) -> u32 {
         let (g, cands) = self.gap_problem(seed, i, j);
-        let scores = self.gap.scores(&g, &cands);
-        let mut best = 0;
-        for (k, s) in scores.iter().enumerate() {
-            if *s < scores[best] {
-                best = k;
+        self.gap.best(&g, &cands)
+    }
+}
+
+/// The candidate of the lowest score, ties to the first.
+fn argmin(cands: &[u32], scores: &[f64]) -> u32 {
+    let mut best = 0;
+    for (k, s) in scores.iter().enumerate() {
+        if *s < scores[best] {
+            best = k;
+        }
+    }
+    cands[best]
+}
+
+/// The coarse tables of an exemplar above [`COARSE_ABOVE`] pixels: box-filtered by the
+/// smallest power of two s that brings it to at most that many, with block and border
+/// divided by s (at least 2 and 1 px). None for smaller exemplars, or where the
+/// scaled patch does not fit.
+fn coarse_tables(ex: &Raster, params: &RsgfParams) -> Option<Box<Coarse>> {
+    let (w, h, c) = (ex.width, ex.height, ex.channels);
+    if w * h <= COARSE_ABOVE {
+        return None;
+    }
+    let mut s = 2;
+    while (w / s) * (h / s) > COARSE_ABOVE {
+        s *= 2;
+    }
+    let border = (params.border_px / s).max(1);
+    let block = (params.block_px / s).max(2 * border + 1);
+    let (cw, ch) = (w / s, h / s);
+    if block + 2 * border > cw.min(ch) {
+        return None;
+    }
+    let mut data = vec![0.0f32; cw * ch * c];
+    let norm = 1.0 / (s * s) as f64;
+    for y in 0..ch {
+        for x in 0..cw {
+            for k in 0..c {
+                let mut acc = 0.0f64;
+                for yy in y * s..(y + 1) * s {
+                    for xx in x * s..(x + 1) * s {
+                        acc += ex.data[(yy * w + xx) * c + k] as f64;
+                    }
+                }
+                data[(y * cw + x) * c + k] = (acc * norm) as f32;
             }
         }
-        cands[best]
+    }
+    let small = Raster::from_vec(cw, ch, c, data).ok()?;
+    let coarse_params = RsgfParams {
+        block_px: block,
+        border_px: border,
+        ..params.clone()
+    };
+    Some(Box::new(Coarse {
+        s,
+        tables: GapTables::new(&small, &coarse_params),
+    }))
+}
+
+impl Coarse {
+    /// The fine candidates worth scoring exactly for fine border `g`: every position of
+    /// `cands` within ±s (per axis) of s × one of the [`COARSE_KEEP`] best coarse
+    /// positions, sorted.
+    fn candidates(&self, fine: &GapTables, g: &[f64], cands: &[u32]) -> Vec<u32> {
+        let (s, t, c) = (self.s, &self.tables, fine.c);
+        // The border at 1/s: each coarse ring pixel the mean of its s × s fine pixels.
+        let mut gc = vec![0.0f64; t.ext * t.ext * c];
+        let norm = 1.0 / (s * s) as f64;
+        for &(y, x0, x1) in &t.ring {
+            for x in x0..x1 {
+                for k in 0..c {
+                    let mut acc = 0.0;
+                    for yy in (y * s..(y + 1) * s).filter(|&v| v < fine.ext) {
+                        for xx in (x * s..(x + 1) * s).filter(|&v| v < fine.ext) {
+                            acc += g[(yy * fine.ext + xx) * c + k];
+                        }
+                    }
+                    gc[(y * t.ext + x) * c + k] = acc * norm;
+                }
+            }
+        }
+        let all: Vec<u32> = (0..(t.nx * (t.h + 1 - t.ext)) as u32).collect();
+        let scores = t.scores(&gc, &all);
+        let mut order: Vec<u32> = all;
+        order.sort_by(|&a, &b| {
+            scores[a as usize]
+                .total_cmp(&scores[b as usize])
+                .then(a.cmp(&b))
+        });
+        let fny = fine.h + 1 - fine.ext;
+        let mut out = Vec::new();
+        for &q in order.iter().take(COARSE_KEEP) {
+            let (qx, qy) = ((q as usize % t.nx) * s, (q as usize / t.nx) * s);
+            for y in qy.saturating_sub(s)..=(qy + s).min(fny - 1) {
+                for x in qx.saturating_sub(s)..=(qx + s).min(fine.nx - 1) {
+                    out.push((y * fine.nx + x) as u32);
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out.retain(|q| cands.binary_search(q).is_ok());
+        out
     }
 }
 
@@ -418,6 +554,49 @@ mod tests {
             );
             let (sa, sb) = (t.scores_from(&g, &cands, &a), t.scores_from(&g, &cands, &b));
             assert!(sa.iter().all(|s| s.is_finite()) && sa.len() == sb.len());
+        }
+    }
+
+    /// Coarse to fine on a large exemplar (a 320² crop of the measured AFM map di-6, so
+    /// s = 2) against the full search, stochastic mode, NCC and SSD: every pick ranks
+    /// among the best 0.1% of all positions, and most are the exact best.
+    #[test]
+    fn coarse_to_fine_finds_the_best_gaps() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tiles/di-6.npy");
+        let image = crate::io::read_image(&path, &crate::io::ReadOptions::default()).unwrap();
+        let ex = image.raster.crop(40, 100, 320, 320).unwrap();
+        for metric in [Metric::Ncc, Metric::Ssd] {
+            let params = RsgfParams {
+                metric,
+                ..RsgfParams::stochastic()
+            };
+            let model = RsgfModel::new(&ex, &params).unwrap();
+            assert_eq!(model.gap.coarse.as_ref().map(|c| c.s), Some(2));
+            let mut exact = 0;
+            let gaps = [(1, 0), (0, 1), (-3, 2), (7, -4), (11, 20), (-40, 9)];
+            for (i, j) in gaps {
+                let (g, cands) = model.gap_problem(5, i, j);
+                let scores = model.gap.scores(&g, &cands);
+                let full = argmin(&cands, &scores);
+                let pick = model.gap.best(&g, &cands);
+                let at = cands.binary_search(&pick).unwrap();
+                let rank = scores.iter().filter(|&&v| v < scores[at]).count();
+                assert!(
+                    rank * 1000 <= cands.len(),
+                    "{metric:?} gap ({i}, {j}): rank {rank} of {}",
+                    cands.len()
+                );
+                exact += usize::from(pick == full);
+            }
+            eprintln!(
+                "{metric:?}: {exact} of {} picks are the full search's",
+                gaps.len()
+            );
+            assert!(
+                2 * exact >= gaps.len(),
+                "{metric:?}: {exact} exact picks of {}",
+                gaps.len()
+            );
         }
     }
 }
