@@ -244,6 +244,11 @@ enum Command {
         /// RSGF: stochastic mode, v1 = (1, 0) and v2 = (0, 1), no lattice estimation.
         #[arg(long)]
         stochastic: bool,
+        /// RSGF, stochastic: map output values so that their histogram is the
+        /// exemplar's (patches over-represent an exemplar's middle; the map costs
+        /// patch coherence).
+        #[arg(long)]
+        match_histogram: bool,
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,
@@ -884,6 +889,7 @@ fn run(command: Command) -> Result<()> {
             join,
             feather,
             stochastic,
+            match_histogram,
             colours,
             levels,
             k,
@@ -949,12 +955,13 @@ fn run(command: Command) -> Result<()> {
                 join,
                 feather_px: feather,
                 stochastic,
+                histogram: match_histogram,
             };
             if method != Method::Rsgf && rsgf != RsgfOptions::default() {
                 return Err(Error::param(
                     "method",
                     method,
-                    "rsgf when --block, --border, --tolerance, --metric, --join, --feather or --stochastic is given",
+                    "rsgf when --block, --border, --tolerance, --metric, --join, --feather, --match-histogram or --stochastic is given",
                 ));
             }
             builder = builder.rsgf(rsgf);
@@ -1324,7 +1331,7 @@ fn run(command: Command) -> Result<()> {
                     Rule::Rsgf => {
                         if let Some(p) = &h.rsgf {
                             println!(
-                                "rule        rsgf on lattice v1 = ({}, {}), v2 = ({}, {}); blocks of {} px, border {} px, tolerance ±{} px, {:?} matching, joined by {}",
+                                "rule        rsgf on lattice v1 = ({}, {}), v2 = ({}, {}); blocks of {} px, border {} px, tolerance ±{} px, {:?} matching, joined by {}{}",
                                 p.v1.0,
                                 p.v1.1,
                                 p.v2.0,
@@ -1333,7 +1340,12 @@ fn run(command: Command) -> Result<()> {
                                 p.border_px,
                                 p.tolerance_px,
                                 p.metric,
-                                surftile::analysis::rsgf::join_text(p)
+                                surftile::analysis::rsgf::join_text(p),
+                                if p.histogram.is_some() {
+                                    ", values mapped to the exemplar's histogram"
+                                } else {
+                                    ""
+                                }
                             );
                         }
                     }

@@ -11,7 +11,7 @@ use surftile::bake::Baker;
 use surftile::bank::Bank;
 use surftile::io::{ReadOptions, read_image};
 use surftile::lattice::{Lattice, periodic_pattern};
-use surftile::stats::{height_stats, seam_score};
+use surftile::stats::{height_stats, seam_score, wasserstein1_standardised};
 use surftile::stream::{Join, Metric, Region, RsgfModel, RsgfParams, RsgfSurface, Surface, open};
 
 /// A near-regular `w × h × channels` exemplar on lattice (u, v): the shared periodic
@@ -70,7 +70,7 @@ fn assert_same_bits(got: &[f32], want: &[f32], what: &str) {
 /// Any region, filled in any order, on any thread count, with any cache size, equals
 /// the sequential whole-image RSGF with the same seed, bit for bit — on a lattice, in
 /// stochastic mode, with NCC matching, in colour, with hard cuts, feathered cuts (the
-/// default) and linear blending.
+/// default), linear blending and a histogram map.
 #[test]
 fn streamed_regions_equal_the_sequential_reference() {
     let (u, v) = ((23, 0), (9, 19));
@@ -98,6 +98,19 @@ fn streamed_regions_equal_the_sequential_reference() {
             near_regular(100, 90, u, v, 2),
             RsgfParams {
                 feather_px: 0,
+                ..RsgfParams::stochastic()
+            },
+        ),
+        (
+            "stochastic, histogram map",
+            near_regular(100, 90, u, v, 1),
+            RsgfParams {
+                histogram: Some(vec![vec![
+                    [-3.0, -2.5],
+                    [0.0, 0.25],
+                    [0.5, 0.5],
+                    [3.0, 4.0],
+                ]]),
                 ..RsgfParams::stochastic()
             },
         ),
@@ -499,6 +512,60 @@ fn cuts_keep_the_standard_deviation() {
     }
 }
 
+/// Patches cover a small exemplar's border less than its middle, so stochastic RSGF of
+/// the 100² dried-mud photo misses its histogram (W1 above 0.05, standard deviation
+/// about 0.87 of the exemplar's at 512²); with the histogram map every channel is back
+/// within W1 0.05 and 5% of the standard deviation.
+#[test]
+fn a_histogram_map_restores_small_exemplars() {
+    let name = "tests/data/gimp-dried-mud.png";
+    let image = read_image(&repo(name), &ReadOptions::default()).unwrap();
+    let n = 512;
+    let figures = |histogram: bool| {
+        let baker = Baker::builder()
+            .method(surftile::bank::Method::Rsgf)
+            .rsgf(RsgfOptions {
+                stochastic: true,
+                histogram,
+                ..RsgfOptions::default()
+            })
+            .build()
+            .unwrap();
+        let (ex, _) = baker.preprocess(&image, name).unwrap();
+        let bank = baker.bake(&image, name, &mut |_| {}).unwrap();
+        assert_eq!(
+            bank.header.rsgf.as_ref().unwrap().histogram.is_some(),
+            histogram
+        );
+        let surface = open(&bank, 0).unwrap();
+        let c = ex.channels;
+        let mut out = vec![0.0f32; n * n * c];
+        surface
+            .fill(&Region::new(0.0, 0.0, n, n), &mut out)
+            .unwrap();
+        let out = Raster::from_vec(n, n, c, out).unwrap();
+        (0..c)
+            .map(|k| {
+                let w1 = wasserstein1_standardised(&ex.channel(k), &out.channel(k));
+                let sd = channel_sd(&out.data, c, k) / channel_sd(&ex.data, c, k);
+                (w1, sd)
+            })
+            .collect::<Vec<_>>()
+    };
+    let (raw, mapped) = (figures(false), figures(true));
+    eprintln!("W1 and sd ratio per channel: {raw:.3?} as copied, {mapped:.3?} mapped");
+    assert!(
+        raw.iter()
+            .any(|&(w1, sd)| w1 > 0.05 || (sd - 1.0).abs() > 0.05)
+    );
+    for (w1, sd) in mapped {
+        assert!(
+            w1 < 0.05 && (sd - 1.0).abs() <= 0.05,
+            "W1 {w1}, sd ratio {sd}"
+        );
+    }
+}
+
 /// A baked RSGF bank round-trips through bytes and opens as the same surface.
 #[test]
 fn rsgf_banks_round_trip() {
@@ -569,6 +636,14 @@ fn bad_rsgf_input_is_refused() {
     assert!(
         feather.contains("feather") && feather.contains("less than the border (10 px)"),
         "{feather}"
+    );
+    let map = msg(RsgfParams {
+        histogram: Some(vec![vec![[1.0, 0.0], [0.5, 1.0]]]),
+        ..RsgfParams::stochastic()
+    });
+    assert!(
+        map.contains("histogram map") && map.contains("increasing"),
+        "{map}"
     );
     let cell = msg(RsgfParams::new((200, 0), (0, 150)));
     assert!(

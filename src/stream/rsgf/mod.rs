@@ -79,6 +79,12 @@ pub struct RsgfParams {
     /// hard cut). Default 2; below the border.
     #[serde(default)]
     pub feather_px: usize,
+    /// Per channel, a monotone map applied to every output value, as knots (from, to),
+    /// `from` increasing: the bake's measure of the histogram a synthesis gives, mapped
+    /// back onto the exemplar's (see `analysis::rsgf::histogram_map`). None: values are
+    /// the exemplar's (or blends of them) as they are.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub histogram: Option<Vec<Vec<[f32; 2]>>>,
     /// Translation vectors v₁, v₂ in pixels ((1, 0), (0, 1) in stochastic mode).
     pub v1: (i64, i64),
     /// See `v1`.
@@ -101,6 +107,7 @@ impl RsgfParams {
             metric: Metric::Ssd,
             join: Join::Cut,
             feather_px: DEFAULT_FEATHER,
+            histogram: None,
             v1,
             v2,
         }

@@ -111,6 +111,9 @@ impl RsgfModel {
                 "an RSGF exemplar of {w}×{h} pixels (at most 2^22, e.g. 2048²: the gap search keeps per-position tables and spectra of it)"
             )));
         }
+        if let Some(maps) = &params.histogram {
+            check_histogram(maps, c)?;
+        }
         let lattice = Lattice::from_basis(params.v1, params.v2)?;
         let cells = lattice.a as u128 * lattice.c as u128;
         if cells > (w * h) as u128 {
@@ -291,6 +294,29 @@ impl RsgfModel {
     /// between them ([`RsgfModel::edge_cut`]). The definition every fill must reproduce
     /// bit for bit.
     pub(crate) fn pixel(
+        &self,
+        px: i64,
+        py: i64,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
+        out: &mut [f32],
+    ) {
+        self.pixel_raw(px, py, pick, cut, out);
+        self.remap(out);
+    }
+
+    /// Applies the histogram map of [`RsgfParams::histogram`], if any, to one sample.
+    #[inline]
+    pub(crate) fn remap(&self, out: &mut [f32]) {
+        if let Some(maps) = &self.params.histogram {
+            for (v, map) in out[..self.c].iter_mut().zip(maps) {
+                *v = map_value(map, *v);
+            }
+        }
+    }
+
+    /// [`RsgfModel::pixel`] before the histogram map.
+    fn pixel_raw(
         &self,
         px: i64,
         py: i64,
@@ -526,6 +552,7 @@ impl RsgfModel {
                 bilinear_add(lv, c, ex, ey, w, out);
             },
         );
+        self.remap(out);
     }
 
     /// The sequential whole-image RSGF (§4) of `width × height` pixels from the origin:
@@ -648,6 +675,42 @@ fn min_cut(
         path[t] = k;
     }
     path
+}
+
+/// A histogram map at v: linear between the knots (from, to) around it, the end
+/// knots' values beyond them.
+#[inline]
+fn map_value(map: &[[f32; 2]], v: f32) -> f32 {
+    let i = map.partition_point(|k| k[0] <= v);
+    if i == 0 {
+        return map[0][1];
+    }
+    if i == map.len() {
+        return map[i - 1][1];
+    }
+    let (a, b) = (map[i - 1], map[i]);
+    a[1] + (v - a[0]) / (b[0] - a[0]) * (b[1] - a[1])
+}
+
+/// Checks a histogram map from a bank: one per channel, at least two knots each,
+/// finite, `from` strictly increasing and `to` non-decreasing.
+fn check_histogram(maps: &[Vec<[f32; 2]>], c: usize) -> Result<()> {
+    let ok = maps.len() == c
+        && maps.iter().all(|m| {
+            m.len() >= 2
+                && m.iter().all(|k| k[0].is_finite() && k[1].is_finite())
+                && m.windows(2)
+                    .all(|w| w[0][0] < w[1][0] && w[0][1] <= w[1][1])
+        });
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::param(
+            "RSGF histogram map",
+            format!("({} maps)", maps.len()),
+            format!("one map per channel ({c}), each of at least two finite knots, increasing"),
+        ))
+    }
 }
 
 /// Adds `w ·` the bilinear sample of level `lv` at texel coordinates (x, y) (clamped
