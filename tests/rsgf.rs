@@ -648,6 +648,11 @@ fn bad_rsgf_input_is_refused() {
         feather.contains("feather") && feather.contains("less than the border (10 px)"),
         "{feather}"
     );
+    let huge = msg(RsgfParams {
+        border_px: 1 << 62,
+        ..RsgfParams::stochastic()
+    });
+    assert!(huge.contains("border"), "{huge}");
     let map = msg(RsgfParams {
         histogram: Some(vec![vec![[1.0, 0.0], [0.5, 1.0]]]),
         ..RsgfParams::stochastic()

@@ -77,7 +77,7 @@ pub struct RsgfParams {
     pub join: Join,
     /// With cuts: the patches ramp linearly over 2·feather pixels around the cut (0: a
     /// hard cut). Default 2; below the border.
-    #[serde(default)]
+    #[serde(default = "default_feather")]
     pub feather_px: usize,
     /// Per channel, a monotone map applied to every output value, as knots (from, to),
     /// `from` increasing: the bake's measure of the histogram a synthesis gives, mapped
@@ -93,6 +93,10 @@ pub struct RsgfParams {
 
 /// Default cut feather ([`RsgfParams::feather_px`]).
 pub const DEFAULT_FEATHER: usize = 2;
+
+fn default_feather() -> usize {
+    DEFAULT_FEATHER
+}
 
 /// Largest block side accepted.
 pub const MAX_BLOCK: usize = 1024;
@@ -133,7 +137,7 @@ impl RsgfParams {
                 format!("2 to {MAX_BLOCK} pixels"),
             ));
         }
-        if self.border_px == 0 || 2 * self.border_px >= self.block_px {
+        if self.border_px == 0 || self.border_px >= self.block_px.div_ceil(2) {
             return Err(Error::param(
                 "border",
                 self.border_px,

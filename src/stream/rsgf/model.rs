@@ -488,10 +488,24 @@ impl RsgfModel {
                 let (x0, y0) = (i * self.b, j * self.b - self.o);
                 let (mut va, mut vb) = ([0.0f32; 4], [0.0f32; 4]);
                 let pin = o - f;
+                // The six blocks and four vertical cuts the two rows use here, fetched
+                // once (a single sample's `pick` and `cut` go through shared caches).
+                let picks: Vec<u32> = (j - 1..=j)
+                    .flat_map(|jj| (i - 1..=i + 1).map(move |ii| (ii, jj)))
+                    .map(|(ii, jj)| pick(ii, jj))
+                    .collect();
+                let vcuts: Vec<Vec<u16>> = (j - 1..=j)
+                    .flat_map(|jj| (i..=i + 1).map(move |ii| (ii, jj)))
+                    .map(|(ii, jj)| (0..b + 2 * o).map(|t| cut(Edge::V, ii, jj, t)).collect())
+                    .collect();
+                let mut pick = |ii: i64, jj: i64| picks[((jj - j + 1) * 3 + ii - i + 1) as usize];
+                let mut cut = |_: Edge, ii: i64, jj: i64, t: usize| {
+                    vcuts[((jj - j + 1) * 2 + ii - i) as usize][t]
+                };
                 let path = min_cut(b, m, Some(pin), |t, k| {
                     let (x, y) = (x0 + t as i64, y0 + (f + k) as i64);
-                    self.row_pixel(j - 1, x, y, pick, cut, &mut va);
-                    self.row_pixel(j, x, y, pick, cut, &mut vb);
+                    self.row_pixel(j - 1, x, y, &mut pick, &mut cut, &mut va);
+                    self.row_pixel(j, x, y, &mut pick, &mut cut, &mut vb);
                     (0..c)
                         .map(|ch| (va[ch] as f64 - vb[ch] as f64).powi(2))
                         .sum()
@@ -689,7 +703,9 @@ fn map_value(map: &[[f32; 2]], v: f32) -> f32 {
         return map[i - 1][1];
     }
     let (a, b) = (map[i - 1], map[i]);
-    a[1] + (v - a[0]) / (b[0] - a[0]) * (b[1] - a[1])
+    // In f64: knot gaps near ±f32::MAX would overflow to infinity in f32.
+    let t = (v as f64 - a[0] as f64) / (b[0] as f64 - a[0] as f64);
+    (a[1] as f64 + t * (b[1] as f64 - a[1] as f64)) as f32
 }
 
 /// Checks a histogram map from a bank: one per channel, at least two knots each,
@@ -765,6 +781,20 @@ pub(crate) fn mip_chain(exemplar: &Raster) -> Vec<Level> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A histogram map interpolates between its knots and holds its ends, and stays
+    /// finite with knots near ±f32::MAX.
+    #[test]
+    fn histogram_maps_interpolate_and_stay_finite() {
+        let map = [[0.0f32, 10.0], [1.0, 12.0], [3.0, 13.0]];
+        assert_eq!(map_value(&map, -5.0), 10.0);
+        assert_eq!(map_value(&map, 0.5), 11.0);
+        assert_eq!(map_value(&map, 2.0), 12.5);
+        assert_eq!(map_value(&map, 9.0), 13.0);
+        let wide = [[-3.0e38f32, -3.0e38], [3.0e38, 3.0e38]];
+        assert_eq!(map_value(&wide, 0.0), 0.0);
+        assert!(check_histogram(&[wide.to_vec()], 1).is_ok());
+    }
 
     /// The cheapest 8-connected path by exhaustive search: every path, its cost.
     fn brute_cut(err: &[Vec<f64>], pin: Option<usize>) -> f64 {
