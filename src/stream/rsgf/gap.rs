@@ -457,12 +457,16 @@ impl Coarse {
         }
         let all: Vec<u32> = (0..(t.nx * (t.h + 1 - t.ext)) as u32).collect();
         let scores = t.scores(&gc, &all);
+        // The COARSE_KEEP best (score, then index): a partial selection; their order
+        // does not matter, the fine candidates are sorted below.
         let mut order: Vec<u32> = all;
-        order.sort_by(|&a, &b| {
-            scores[a as usize]
-                .total_cmp(&scores[b as usize])
-                .then(a.cmp(&b))
-        });
+        if order.len() > COARSE_KEEP {
+            order.select_nth_unstable_by(COARSE_KEEP - 1, |a, b| {
+                scores[*a as usize]
+                    .total_cmp(&scores[*b as usize])
+                    .then(a.cmp(b))
+            });
+        }
         let fny = fine.h + 1 - fine.ext;
         let mut out = Vec::new();
         for &q in order.iter().take(COARSE_KEEP) {

@@ -336,9 +336,7 @@ impl RsgfModel {
             for (j, wy) in rows {
                 if wy != 0.0 {
                     self.row_pixel(j, px, py, pick, cut, &mut v);
-                    for (o, v) in out[..c].iter_mut().zip(&v[..c]) {
-                        *o += wy * v;
-                    }
+                    add_scaled(&mut out[..c], wy, &v[..c]);
                 }
             }
             return;
@@ -352,9 +350,7 @@ impl RsgfModel {
                 let ex = qx + (px - ox) as usize;
                 let ey = qy + (py - oy) as usize;
                 let at = (ey * l0.w + ex) * c;
-                for (o, v) in out[..c].iter_mut().zip(&l0.data[at..at + c]) {
-                    *o += w * v;
-                }
+                add_scaled(&mut out[..c], w, &l0.data[at..at + c]);
             },
         );
     }
@@ -388,9 +384,7 @@ impl RsgfModel {
         for (i, w) in cols {
             if w != 0.0 {
                 let at = at(i);
-                for (o, v) in out[..c].iter_mut().zip(&l0.data[at..at + c]) {
-                    *o += w * v;
-                }
+                add_scaled(&mut out[..c], w, &l0.data[at..at + c]);
             }
         }
     }
@@ -689,6 +683,14 @@ fn min_cut(
         path[t] = k;
     }
     path
+}
+
+/// out += w · src, element by element.
+#[inline]
+fn add_scaled(out: &mut [f32], w: f32, src: &[f32]) {
+    for (o, v) in out.iter_mut().zip(src) {
+        *o += w * v;
+    }
 }
 
 /// A histogram map at v: linear between the knots (from, to) around it, the end
