@@ -42,7 +42,8 @@ pub const LUT_Z_RANGE: f64 = 5.0;
 const MIN_LEVEL_SIDE: usize = 4;
 
 /// Plane levelling before analysis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Leveling {
     /// Subtract the least-squares plane from height maps (1 channel), leave colour as is.
     Auto,
@@ -53,7 +54,8 @@ pub enum Leveling {
 }
 
 /// How a crop is made periodic before the FFT-based methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Taper {
     /// Taper to the mean with a Hann window, variance kept by scaling every frequency
     /// alike (the bake's default). The RPN patch then has the Hann-windowed periodogram

@@ -28,9 +28,11 @@
 pub mod analysis;
 pub mod bake;
 pub mod bank;
+#[cfg(feature = "cli")]
 pub mod demo;
 pub mod error;
 pub mod fft;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod hash;
 pub mod imperfect;
@@ -45,6 +47,7 @@ pub mod shade;
 pub mod source;
 pub mod stats;
 pub mod stream;
+#[cfg(feature = "view")]
 pub mod view;
 
 pub use error::{Error, Result};

@@ -67,7 +67,8 @@ impl std::fmt::Display for Rule {
 }
 
 /// The analysis that made the tiles.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Random phase noise (seed 000 §3.1.2).

@@ -729,21 +729,25 @@ impl MillingSurface {
     }
 
     /// The ring model (for the GPU path).
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(crate) fn ring_model(&self) -> &RingModel {
         &self.rings
     }
 
     /// The tool path (for the GPU path).
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(crate) fn tool_path(&self) -> &ToolPath {
         &self.path
     }
 
     /// Millimetres per surface pixel.
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(crate) fn mm_per_px(&self) -> f64 {
         self.mm_per_px
     }
 
     /// The radial shape table and the quantised noise profiles (for the GPU path).
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(crate) fn tables(&self) -> (&[f32], &[i16]) {
         (&self.lut, &self.noise_q)
     }

@@ -34,7 +34,8 @@ use crate::error::{Error, Result};
 use crate::raster::Raster;
 
 /// How a gap's border is matched (§4.2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Metric {
     /// Sum of squared differences over the border (eq. 10): also matches brightness.
@@ -44,7 +45,8 @@ pub enum Metric {
 }
 
 /// How neighbouring patches are joined across the 2·o pixels of their overlap.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Join {
     /// Linear blending across the overlap (the paper's): objects that differ in the
