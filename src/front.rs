@@ -1,0 +1,166 @@
+//! The front door: [`open`] whatever the user pointed at (a bank file, a milling or
+//! model `.toml`, or a preset name) and get a [`Source`], whose [`Source::surface`] gives
+//! the endless surface for a seed. [`Open`] is the builder for the options: the pixel
+//! spacing a procedural kind is drawn at, and an imperfection layer (seed 004) with its
+//! age. Every step a kind needs (such as milling's `[adapt]`) is applied here, so a
+//! caller cannot forget one.
+
+use std::path::{Path, PathBuf};
+
+use crate::bank::Bank;
+use crate::error::{Error, Result};
+use crate::imperfect::{Imperfect, ImperfectConfig};
+use crate::shade::ShadeOptions;
+use crate::source::SourceSpec;
+use crate::stream::Surface;
+
+/// The pixel spacing (µm) a milling source is drawn at unless told otherwise (the
+/// paper's Fig. 25 field). Banks carry their own spacing; seed 001 models are in pixels.
+pub const DEFAULT_SPACING_UM: f64 = 6.1;
+
+/// Opens `spec` with the default options: a bank file (recognised by its content), a
+/// `.toml` (a seed 001 model if it has a `[fractal]` or `[cells]` table, else a milling
+/// configuration), or a preset name (models: rock, china, casting, cells-convex,
+/// cells-concave; milling: e.g. parallel-d4-ae05). See [`Open`] for the options.
+///
+/// ```
+/// use surftile::{Region, Surface};
+///
+/// let source = surftile::open("rock")?;
+/// let surface = source.surface(3)?;
+/// let mut row = vec![0.0f32; 64 * surface.channels()];
+/// surface.fill(&Region::new(-1e9, 5.0, 64, 1), &mut row)?;
+/// assert_eq!(row[10], surface.height(-1e9 + 10.0, 5.0));
+/// # Ok::<(), surftile::Error>(())
+/// ```
+pub fn open(spec: impl AsRef<Path>) -> Result<Source> {
+    Open::new(spec).open()
+}
+
+/// The options of [`open`], checked when [`Open::open`] runs.
+#[derive(Clone, Debug)]
+pub struct Open {
+    spec: PathBuf,
+    spacing_um: f64,
+    imperfection: Option<PathBuf>,
+    age: Option<f64>,
+}
+
+impl Open {
+    /// `spec` as [`open`] takes it, with the default options.
+    pub fn new(spec: impl AsRef<Path>) -> Open {
+        Open {
+            spec: spec.as_ref().to_path_buf(),
+            spacing_um: DEFAULT_SPACING_UM,
+            imperfection: None,
+            age: None,
+        }
+    }
+
+    /// The pixel spacing in µm a milling source is drawn at (default
+    /// [`DEFAULT_SPACING_UM`]); banks keep the spacing they were baked with.
+    pub fn spacing_um(mut self, spacing_um: f64) -> Open {
+        self.spacing_um = spacing_um;
+        self
+    }
+
+    /// An imperfection layer over the surface (seed 004): a `.toml` or a preset name
+    /// (dust, patina, peeling).
+    pub fn imperfection(mut self, config: impl AsRef<Path>) -> Open {
+        self.imperfection = Some(config.as_ref().to_path_buf());
+        self
+    }
+
+    /// The imperfection layer's age, multiplying every source's γ (default: the
+    /// configuration's, 1 for the presets). Needs [`Open::imperfection`].
+    pub fn age(mut self, age: f64) -> Open {
+        self.age = Some(age);
+        self
+    }
+
+    /// Checks the options, then loads the source and the layer's configuration.
+    pub fn open(self) -> Result<Source> {
+        if !(self.spacing_um.is_finite() && self.spacing_um > 0.0) {
+            return Err(Error::param(
+                "spacing_um",
+                self.spacing_um,
+                "a positive, finite pixel spacing in µm",
+            ));
+        }
+        let layer = match (&self.imperfection, self.age) {
+            (None, Some(age)) => {
+                return Err(Error::param(
+                    "age",
+                    age,
+                    "an imperfection layer as well (the age belongs to one)",
+                ));
+            }
+            (None, None) => None,
+            (Some(path), age) => {
+                let (mut config, base) = ImperfectConfig::load(path)?;
+                if let Some(a) = age {
+                    config.age = a;
+                }
+                config.validate()?;
+                Some(Layer { config, base })
+            }
+        };
+        let spec = SourceSpec::load(&self.spec, self.spacing_um)?;
+        Ok(Source { spec, layer })
+    }
+}
+
+/// An imperfection layer's configuration and the folder its relative paths start from.
+struct Layer {
+    config: ImperfectConfig,
+    base: Option<PathBuf>,
+}
+
+/// What [`open`] returns: a loaded source, reopened under any seed by
+/// [`Source::surface`].
+pub struct Source {
+    spec: SourceSpec,
+    layer: Option<Layer>,
+}
+
+impl Source {
+    /// The surface placed with `seed`, with the imperfection layer over it when one was
+    /// asked for (its noise seeded with `seed` too).
+    pub fn surface(&self, seed: u32) -> Result<Box<dyn Surface>> {
+        let surface = self.spec.surface(seed)?;
+        Ok(match &self.layer {
+            None => surface,
+            Some(layer) => Box::new(Imperfect::new(
+                surface,
+                &layer.config,
+                layer.base.as_deref(),
+                seed,
+            )?),
+        })
+    }
+
+    /// The source as loaded, without the layer.
+    pub fn spec(&self) -> &SourceSpec {
+        &self.spec
+    }
+
+    /// The bank, for a bank file.
+    pub fn bank(&self) -> Option<&Bank> {
+        self.spec.bank()
+    }
+
+    /// Pixel spacing in µm, where the source has one.
+    pub fn spacing_um(&self) -> Option<f64> {
+        self.spec.spacing_um()
+    }
+
+    /// How it is shaded by default: a model's material, the default material otherwise.
+    pub fn material(&self) -> ShadeOptions {
+        self.spec.material()
+    }
+
+    /// Whether an imperfection layer lies over the surface.
+    pub fn has_imperfection(&self) -> bool {
+        self.layer.is_some()
+    }
+}
