@@ -20,8 +20,9 @@ use surftile::bake::Baker;
 use surftile::bank::{Bank, Method};
 use surftile::gpu::{Gpu, GpuSurface};
 use surftile::io::ImageFile;
+use surftile::kinds::open;
 use surftile::models::milling::{MillingConfig, MillingSurface};
-use surftile::stream::{Region, open};
+use surftile::stream::Region;
 
 fn roller_bank() -> Bank {
     let (u, v) = ((40, 0), (13, 29));

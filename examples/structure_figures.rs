@@ -21,10 +21,11 @@ use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
+use surftile::kinds::open;
 use surftile::raster::Raster;
 use surftile::stats::structure::structure;
 use surftile::stats::{psd_error, wasserstein1_standardised};
-use surftile::stream::{Region, Surface, SynthParams, open};
+use surftile::stream::{Region, Surface, SynthParams};
 use texture_synthesis as ts;
 
 #[derive(Parser)]

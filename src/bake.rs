@@ -24,7 +24,7 @@ use crate::analysis::roller::{mip_down, required_size, roller_tiles};
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
 use crate::analysis::rsgf::RsgfOptions;
 use crate::analysis::taper::{hann_taper, hann_taper_main_lobe};
-use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
+use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::{Error, Result};
 use crate::io::ImageFile;
 use crate::lattice::Lattice;
@@ -598,25 +598,16 @@ impl Baker {
         let exemplar = exemplar_info(&ex, source);
         let sqrt3 = 3f64.sqrt();
         let header = BankHeader {
-            rule: Rule::Blend,
             method: self.method,
             channels: c,
             tiles: self.bank_size,
             tile_size: [pw, ph],
             lattice: [[edge, 0.0], [edge / 2.0, edge * sqrt3 / 2.0]],
-            triangle_edge: edge,
             levels,
             spacing_um,
             height_unit: height_unit(c, spacing_um),
             seed: self.seed,
-            lut_size: LUT_SIZE,
-            lut_z_range: LUT_Z_RANGE,
             exemplar,
-            seam_costs: Vec::new(),
-            milling: None,
-            rsgf: None,
-            wang_colours: None,
-            synth: None,
             bake: format!(
                 "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
@@ -628,6 +619,11 @@ impl Baker {
                 self.fill_missing,
                 self.taper
             ),
+            record: Record::Blend {
+                triangle_edge: edge,
+                lut_size: LUT_SIZE,
+                lut_z_range: LUT_Z_RANGE,
+            },
         };
         Bank::new(header, texels, luts, source)
     }
@@ -694,19 +690,15 @@ impl Baker {
         progress(&format!("{} mip levels", levels.len()));
         let t = side as f64;
         let header = BankHeader {
-            rule: Rule::Wang,
             method: Method::Quilt,
             channels: c,
             tiles: k,
             tile_size: [side, side],
             lattice: [[t, 0.0], [0.0, t]],
-            triangle_edge: 0.0,
             levels,
             spacing_um,
             height_unit: height_unit(c, spacing_um),
             seed: self.seed,
-            lut_size: 0,
-            lut_z_range: 0.0,
             exemplar: exemplar_info(&ex, source),
             bake: format!(
                 "method=quilt colours={} patch={side} edge={} band={} seed={} level={:?} downsample={} filter={:?} fill_missing={}",
@@ -719,11 +711,10 @@ impl Baker {
                 self.filter,
                 self.fill_missing
             ),
-            seam_costs: wt.seam_costs,
-            milling: None,
-            rsgf: None,
-            wang_colours: Some(layout.colours),
-            synth: None,
+            record: Record::Wang {
+                colours: layout.colours,
+                seam_costs: wt.seam_costs,
+            },
         };
         let luts = vec![Vec::new(); texels.len()];
         Bank::new(header, texels, luts, "just baked")
@@ -881,19 +872,15 @@ impl Baker {
             levels.len()
         ));
         let header = BankHeader {
-            rule: Rule::Toroidal,
             method: Method::Roller,
             channels: c,
             tiles: rt.tiles.len(),
             tile_size: [lattice.a as usize, lattice.c as usize],
             lattice: [[u.0 as f64, u.1 as f64], [v.0 as f64, v.1 as f64]],
-            triangle_edge: 0.0,
             levels,
             spacing_um,
             height_unit: height_unit(c, spacing_um),
             seed: self.seed,
-            lut_size: 0,
-            lut_z_range: 0.0,
             exemplar: exemplar_info(&ex, source),
             bake: format!(
                 "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} phase={:?} level={:?} downsample={} filter={:?} fill_missing={}",
@@ -910,11 +897,9 @@ impl Baker {
                 self.filter,
                 self.fill_missing
             ),
-            seam_costs: rt.seam_costs,
-            milling: None,
-            rsgf: None,
-            wang_colours: None,
-            synth: None,
+            record: Record::Toroidal {
+                seam_costs: rt.seam_costs,
+            },
         };
         let luts = vec![Vec::new(); texels.len()];
         Bank::new(header, texels, luts, "just baked")

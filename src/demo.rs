@@ -133,7 +133,11 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     );
 
     let t = Instant::now();
-    let figures = compare(&exemplar, &render, Some(bank.header.triangle_edge as usize));
+    let figures = compare(
+        &exemplar,
+        &render,
+        Some(bank.header.triangle_edge() as usize),
+    );
     let json = serde_json::to_string_pretty(&figures)
         .map_err(|e| Error::decode("stats", e.to_string()))?;
     let path = dir.join("stats.json");

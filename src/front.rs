@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use crate::bank::Bank;
 use crate::error::{Error, Result};
 use crate::imperfect::{Imperfect, ImperfectConfig};
+use crate::kinds::{Kind, LoadOptions, Loaded};
 use crate::shade::ShadeOptions;
-use crate::source::SourceSpec;
 use crate::stream::Surface;
 
 /// The pixel spacing (µm) a milling source is drawn at unless told otherwise (the
@@ -105,8 +105,13 @@ impl Open {
                 Some(Layer { config, base })
             }
         };
-        let spec = SourceSpec::load(&self.spec, self.spacing_um)?;
-        Ok(Source { spec, layer })
+        let loaded = crate::kinds::load(
+            &self.spec,
+            LoadOptions {
+                spacing_um: self.spacing_um,
+            },
+        )?;
+        Ok(Source { loaded, layer })
     }
 }
 
@@ -119,7 +124,7 @@ struct Layer {
 /// What [`open`] returns: a loaded source, reopened under any seed by
 /// [`Source::surface`].
 pub struct Source {
-    spec: SourceSpec,
+    loaded: Box<dyn Loaded>,
     layer: Option<Layer>,
 }
 
@@ -127,7 +132,7 @@ impl Source {
     /// The surface placed with `seed`, with the imperfection layer over it when one was
     /// asked for (its noise seeded with `seed` too).
     pub fn surface(&self, seed: u32) -> Result<Box<dyn Surface>> {
-        let surface = self.spec.surface(seed)?;
+        let surface = self.loaded.surface(seed)?;
         Ok(match &self.layer {
             None => surface,
             Some(layer) => Box::new(Imperfect::new(
@@ -139,28 +144,33 @@ impl Source {
         })
     }
 
-    /// The source as loaded, without the layer.
-    pub fn spec(&self) -> &SourceSpec {
-        &self.spec
+    /// The source as its kind loaded it, without the layer.
+    pub fn loaded(&self) -> &dyn Loaded {
+        self.loaded.as_ref()
+    }
+
+    /// Its kind (the registry entry, [`crate::kinds::KINDS`]).
+    pub fn kind(&self) -> &'static dyn Kind {
+        self.loaded.kind()
     }
 
     /// The bank, for a bank file.
     pub fn bank(&self) -> Option<&Bank> {
-        self.spec.bank()
+        self.loaded.bank()
     }
 
     /// Pixel spacing in µm, where the source has one.
     pub fn spacing_um(&self) -> Option<f64> {
-        self.spec.spacing_um()
+        self.loaded.spacing_um()
     }
 
     /// How it is shaded by default: a model's material, the default material otherwise.
     pub fn material(&self) -> ShadeOptions {
-        self.spec.material()
+        self.loaded.material()
     }
 
-    /// Whether an imperfection layer lies over the surface.
-    pub fn has_imperfection(&self) -> bool {
-        self.layer.is_some()
+    /// The imperfection layer's configuration and the folder of its relative paths.
+    pub fn imperfection(&self) -> Option<(&ImperfectConfig, Option<&Path>)> {
+        self.layer.as_ref().map(|l| (&l.config, l.base.as_deref()))
     }
 }

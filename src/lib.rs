@@ -25,11 +25,11 @@
 //! ```
 //! use surftile::bake::Baker;
 //! use surftile::io::{ReadOptions, read_image};
-//! use surftile::stream::{Region, Surface, open};
+//! use surftile::{Region, Surface};
 //!
 //! let exemplar = read_image("tiles/di-6.npy".as_ref(), &ReadOptions::default())?;
 //! let bank = Baker::builder().seed(1).build()?.bake(&exemplar, "di-6", &mut |_| {})?;
-//! let surface = open(&bank, 7)?; // any bank, whatever its kind
+//! let surface = surftile::kinds::open(&bank, 7)?; // any bank, whatever its kind
 //! let mut tile = vec![0.0f32; 64 * 64 * surface.channels()];
 //! surface.fill(&Region::new(1e9, 0.0, 64, 64), &mut tile)?;
 //! # Ok::<(), surftile::Error>(())
@@ -55,6 +55,7 @@ pub mod gpu;
 pub mod hash;
 pub mod imperfect;
 pub mod io;
+pub mod kinds;
 pub mod lattice;
 pub mod models;
 pub mod nn;
@@ -62,7 +63,6 @@ pub mod raster;
 pub mod render;
 pub mod sandblast;
 pub mod shade;
-pub mod source;
 pub mod stats;
 pub mod stream;
 #[cfg(feature = "view")]

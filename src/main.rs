@@ -13,7 +13,7 @@ use surftile::analysis::missing::fill_missing;
 use surftile::analysis::resample::DownsampleFilter;
 use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
-use surftile::bank::{Bank, Method, Rule};
+use surftile::bank::Method;
 use surftile::demo::run_demo;
 use surftile::imperfect::{Imperfect, ImperfectConfig};
 use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
@@ -21,7 +21,6 @@ use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::render::{LayerOutputs, checked_size, render_imperfect, render_to_file};
 use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;
-use surftile::source::SourceSpec;
 use surftile::stats::compare;
 use surftile::stats::structure::structure;
 use surftile::stream::{Join, Metric, SynthParams};
@@ -693,8 +692,12 @@ fn check_output(path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn load_surface(source: &Path, seed: u32, spacing: f64) -> Result<(SourceSpec, Box<dyn Surface>)> {
-    let spec = SourceSpec::load(source, spacing)?;
+fn load_surface(
+    source: &Path,
+    seed: u32,
+    spacing: f64,
+) -> Result<(surftile::Source, Box<dyn Surface>)> {
+    let spec = surftile::Open::new(source).spacing_um(spacing).open()?;
     let surface = spec.surface(seed)?;
     Ok((spec, surface))
 }
@@ -1081,17 +1084,12 @@ fn run(command: Command) -> Result<()> {
             let (spec, mut surface) = load_surface(&source, seed, spacing)?;
             let shading = shading.options(spec.material())?;
             if gpu {
-                match spec.bank() {
-                    Some(bank) => match surftile::gpu::GpuFilled::open(bank, seed) {
-                        Ok(g) => {
-                            eprintln!("render: filling on the GPU, {}", g.gpu().describe());
-                            surface = Box::new(g);
-                        }
-                        Err(e) => eprintln!("render: {e}; filling on the CPU instead"),
-                    },
-                    None => eprintln!(
-                        "render: --gpu runs banks only; filling this source on the CPU instead"
-                    ),
+                match surftile::gpu::GpuFilled::for_source(spec.loaded(), seed) {
+                    Ok(g) => {
+                        eprintln!("render: filling on the GPU, {}", g.gpu().describe());
+                        surface = Box::new(g);
+                    }
+                    Err(e) => eprintln!("render: {e}; filling on the CPU instead"),
                 }
             }
             let start = Instant::now();
@@ -1288,103 +1286,14 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Info { bank, json } => {
             let bytes = std::fs::metadata(&bank).map(|m| m.len()).ok();
-            let b = Bank::read(&bank)?;
+            let b = surftile::kinds::read_bank(&bank)?;
             if json {
                 println!("{:#}", b.info_json(bytes));
             } else {
                 let h = &b.header;
                 println!("bank        {}", bank.display());
-                match h.rule {
-                    Rule::Milling => {
-                        if let Some(m) = &h.milling {
-                            let c = &m.config;
-                            println!(
-                                "rule        milling: {:?} path, d = {} mm, ρ = {} mm, δ = {} mm, β = {}°, {:?} rings, {:?} interaction, ε = {}",
-                                c.path.kind,
-                                c.tool.diameter_mm,
-                                (1.0 - c.path.overlap) * c.tool.diameter_mm,
-                                c.path.step_mm,
-                                c.path.angle_deg,
-                                c.shape.kind,
-                                c.interaction.kind,
-                                c.path.reorder
-                            );
-                            if let Some(a) = m.adaptation {
-                                println!(
-                                    "adaptation  model mean {:.4} µm, std {:.4} µm → mean {:.4} µm, std {:.4} µm",
-                                    a.model_mean_um,
-                                    a.model_std_um,
-                                    a.target_mean_um,
-                                    a.target_std_um
-                                );
-                            }
-                        }
-                    }
-                    Rule::Blend => {
-                        println!("rule        blend (triangle edge {} px)", h.triangle_edge)
-                    }
-                    Rule::Synth => {
-                        if let Some(p) = &h.synth {
-                            println!("rule        synth: {}", p.describe());
-                        }
-                    }
-                    Rule::Rsgf => {
-                        if let Some(p) = &h.rsgf {
-                            println!(
-                                "rule        rsgf on lattice v1 = ({}, {}), v2 = ({}, {}); blocks of {} px, border {} px, tolerance ±{} px, {:?} matching, joined by {}{}",
-                                p.v1.0,
-                                p.v1.1,
-                                p.v2.0,
-                                p.v2.1,
-                                p.block_px,
-                                p.border_px,
-                                p.tolerance_px,
-                                p.metric,
-                                surftile::analysis::rsgf::join_text(p),
-                                if p.histogram.is_some() {
-                                    ", values mapped to the exemplar's histogram"
-                                } else {
-                                    ""
-                                }
-                            );
-                        }
-                    }
-                    Rule::Wang => {
-                        println!(
-                            "rule        wang: {} colours per edge direction, {} tiles of {}×{} px on a square lattice",
-                            h.wang_colours.unwrap_or(0),
-                            h.tiles,
-                            h.tile_size[0],
-                            h.tile_size[1]
-                        );
-                        if let [v, i] = h.seam_costs[..] {
-                            println!(
-                                "seam cost   vertex cuts {v:.4e}, interior cuts {i:.4e} (mean squared error per seam pixel)"
-                            );
-                        }
-                    }
-                    Rule::Toroidal => {
-                        let [u, v] = h.lattice;
-                        println!(
-                            "rule        toroidal on lattice u = ({}, {}), v = ({}, {}); HNF cell {}×{}, row shift {}",
-                            u[0],
-                            u[1],
-                            v[0],
-                            v[1],
-                            h.tile_size[0],
-                            h.tile_size[1],
-                            h.levels[0].shift.unwrap_or(0)
-                        );
-                        let mut costs = h.seam_costs.iter();
-                        if let (Some(cu), Some(cv)) = (costs.next(), costs.next()) {
-                            println!(
-                                "seam cost   u cut {cu:.4e}, v cut {cv:.4e} (mean squared error per bin)"
-                            );
-                        }
-                        for (k, c) in costs.enumerate() {
-                            println!("seam cost   tile {} border cut {c:.4e}", k + 2);
-                        }
-                    }
+                for line in surftile::kinds::describe(&b)? {
+                    println!("{line}");
                 }
                 println!("method      {}", h.method);
                 println!(

@@ -64,7 +64,8 @@ fn check_map(rel: &str) -> Vec<String> {
     println!(
         "{name}: {w}×{h}, tiles {:?}, E = {}: W1 {w1:.4} (self {w1_self:.4}, bar {w1_bar:.4}), \
          PSD error {psd:.4} (self {psd_self:.4}, bar {psd_bar:.4}), seam score {seam:.4}",
-        bank.header.tile_size, bank.header.triangle_edge
+        bank.header.tile_size,
+        bank.header.triangle_edge()
     );
     let mut failures = Vec::new();
     if w1.is_nan() || w1 >= w1_bar {

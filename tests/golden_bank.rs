@@ -49,11 +49,11 @@ fn golden_bank_reads_and_says_what_it_is() {
     let bank = Bank::read(&common::repo(GOLDEN)).expect("the golden v1 bank must stay readable");
     let h = &bank.header;
     assert_eq!(
-        (h.rule, h.method, h.channels, h.tiles),
+        (h.rule(), h.method, h.channels, h.tiles),
         (Rule::Blend, Method::Rpn, 1, 2)
     );
     assert_eq!(h.tile_size, [8, 8]);
-    assert_eq!(h.triangle_edge, 4.0);
+    assert_eq!(h.triangle_edge(), 4.0);
     assert_eq!(h.spacing_um, Some(2.5));
     assert_eq!(h.seed, 5);
     assert_eq!(h.levels.len(), 2, "8 → 4 texels");
@@ -81,7 +81,7 @@ fn golden_bank_writes_back_byte_for_byte() {
 fn golden_bank_samples_its_vertices_as_the_rule_says() {
     let bank = Bank::read(&common::repo(GOLDEN)).unwrap();
     let h = &bank.header;
-    let (e, [w, _]) = (h.triangle_edge, h.tile_size);
+    let (e, [w, _]) = (h.triangle_edge(), h.tile_size);
     let seed = 11u32;
     let surface = BlendSurface::new(&bank, seed).unwrap();
     // Vertices with j = 0 lie at (E·i, 0): integer coordinates for E = 4.
@@ -93,7 +93,7 @@ fn golden_bank_samples_its_vertices_as_the_rule_says() {
         let tx = ((x as i64 + ox as i64).rem_euclid(8)) as usize;
         let g = bank.texels[0][tile * 64 + oy * w + tx] as f64;
         let z = ((g - h.levels[0].mean[0]) / h.levels[0].sigma[0]) as f32;
-        let expected = lut_eval(&bank.luts[0], z, h.lut_z_range as f32);
+        let expected = lut_eval(&bank.luts[0], z, h.lut_z_range() as f32);
         let got = surface.height(x, y);
         assert!(
             (got - expected).abs() <= 1e-6 * expected.abs().max(1.0),

@@ -15,7 +15,8 @@ use surftile::bank::{Bank, Method};
 use surftile::gpu::{Gpu, GpuSurface, HashInput, gpu_hashes, gpu_required};
 use surftile::hash::{hash_cell, hash_tile, hash_vertex, pick_tile};
 use surftile::io::ImageFile;
-use surftile::stream::{Region, open};
+use surftile::kinds::open;
+use surftile::stream::Region;
 
 /// The shared device, or `None` (with the reason printed) where there is no adapter
 /// and none is required.

@@ -312,7 +312,7 @@ fn milling_banks_round_trip() {
         .unwrap();
     let bank = s.to_bank("test").unwrap();
     let back = surftile::bank::Bank::from_bytes(&bank.to_bytes().unwrap(), "test").unwrap();
-    let t = surftile::stream::open(&back, 4).unwrap();
+    let t = surftile::kinds::open(&back, 4).unwrap();
     for k in 0..500 {
         let (x, y) = (k as f64 * 13.7 - 3000.0, k as f64 * -5.3 + 40.0);
         assert_eq!(

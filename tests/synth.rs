@@ -6,9 +6,10 @@ use surftile::analysis::synth::synth_model;
 use surftile::bake::Baker;
 use surftile::bank::{Bank, Method};
 use surftile::io::{ReadOptions, read_image};
+use surftile::kinds::open;
 use surftile::raster::Raster;
 use surftile::stream::synth::SynthSurface;
-use surftile::stream::{Region, Surface, SynthParams, open};
+use surftile::stream::{Region, Surface, SynthParams};
 
 fn mud() -> Raster {
     read_image(

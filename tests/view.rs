@@ -12,7 +12,8 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
 use surftile::gpu::{Gpu, gpu_required};
-use surftile::stream::{Region, Surface, open};
+use surftile::kinds::open;
+use surftile::stream::{Region, Surface};
 
 /// An Xvfb server on a free display, stopped on drop. The window tests hold one at a
 /// time (two servers started at once could race for the same display number).

@@ -7,7 +7,7 @@ use crate::analysis::ncc::autocorrelation;
 use crate::analysis::translation::{
     BAKE_WITHOUT_LATTICE, MIN_MEAN_GAMMA, best_pair, no_lattice, ridge_notes,
 };
-use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
+use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::Result;
 use crate::raster::Raster;
 use crate::stream::{Join, Metric, Region, RsgfModel, RsgfParams, RsgfSurface, Surface};
@@ -207,19 +207,15 @@ pub(crate) fn bake(
     ));
     let (exemplar, spacing_um, seed, bake_text) = header_base;
     let header = BankHeader {
-        rule: Rule::Rsgf,
         method: Method::Rsgf,
         channels: c,
         tiles: 1,
         tile_size: [w, h],
         lattice: [[v1.0 as f64, v1.1 as f64], [v2.0 as f64, v2.1 as f64]],
-        triangle_edge: 0.0,
         levels,
         spacing_um,
         height_unit: crate::bake::height_unit(c, spacing_um),
         seed,
-        lut_size: 0,
-        lut_z_range: 0.0,
         exemplar,
         bake: format!(
             "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} join={:?} feather={} stochastic={} {bake_text}",
@@ -235,11 +231,10 @@ pub(crate) fn bake(
             params.feather_px,
             options.stochastic
         ),
-        seam_costs: Vec::new(),
-        milling: None,
-        rsgf: Some(params),
-        wang_colours: None,
-        synth: None,
+        record: Record::Rsgf(
+            serde_json::to_value(&params)
+                .map_err(|e| crate::error::Error::bank(source, format!("rsgf section: {e}")))?,
+        ),
     };
     let luts = vec![Vec::new(); texels.len()];
     Bank::new(header, texels, luts, "just baked")

@@ -13,7 +13,7 @@
 //!   itself and the k − 1 pixels of most similar appearance at least one spacing (and
 //!   2 px) away, among those a synthesis may use (at most side − h_l).
 
-use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
+use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::{Error, Result};
 use crate::nn::{KdTree, Pca, par_map};
 use crate::raster::Raster;
@@ -260,13 +260,11 @@ pub fn bake_synth(
     let (mean, sigma) = crate::bake::channel_stats(&ex.data, c);
     let (exemplar, spacing_um, seed, bake_text) = header_base;
     let header = BankHeader {
-        rule: Rule::Synth,
         method: Method::Synth,
         channels: c,
         tiles: 1,
         tile_size: [w, h],
         lattice: [[1.0, 0.0], [0.0, 1.0]],
-        triangle_edge: 0.0,
         levels: vec![LevelInfo {
             size: [w, h],
             mean,
@@ -276,8 +274,6 @@ pub fn bake_synth(
         spacing_um,
         height_unit: crate::bake::height_unit(c, spacing_um),
         seed,
-        lut_size: 0,
-        lut_z_range: 0.0,
         exemplar,
         bake: format!(
             "method=synth levels={} k={} passes={} fine_passes={} jitter={} jitter_levels={} coherence={} appearance_dims={} {bake_text}",
@@ -290,11 +286,11 @@ pub fn bake_synth(
             p.coherence,
             p.appearance_dims
         ),
-        seam_costs: Vec::new(),
-        milling: None,
-        rsgf: None,
-        wang_colours: None,
-        synth: Some(model.params.clone()),
+        record: Record::Synth(
+            serde_json::to_value(&model.params).map_err(|e| {
+                crate::error::Error::bank("just baked", format!("synth section: {e}"))
+            })?,
+        ),
     };
     Bank::with_extra(
         header,

@@ -142,25 +142,23 @@ pub struct LevelInfo {
     pub shift: Option<usize>,
 }
 
-/// The self-describing header of a bank file.
+/// The self-describing header of a bank file: the fields every rule has, and the
+/// rule's own [`Record`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(into = "HeaderV1", try_from = "HeaderV1")]
 pub struct BankHeader {
-    /// Placement rule.
-    pub rule: Rule,
     /// Analysis method.
     pub method: Method,
     /// Values per pixel.
     pub channels: usize,
     /// Number of tiles (K).
     pub tiles: usize,
-    /// Level-0 tile size `[w, h]` in pixels (powers of two).
+    /// Level-0 tile size `[w, h]` in pixels.
     pub tile_size: [usize; 2],
     /// Lattice basis `[[ux, uy], [vx, vy]]` in pixels: for the blend rule, the
     /// triangle grid's edge vectors; for the toroidal rule, the reduced periodicity
-    /// vectors u, v.
+    /// vectors u, v; for RSGF, its lattice; zero where a rule has none.
     pub lattice: [[f64; 2]; 2],
-    /// Triangle edge length E in pixels (blend rule).
-    pub triangle_edge: f64,
     /// Mip levels, level 0 first.
     pub levels: Vec<LevelInfo>,
     /// Pixel spacing in µm per pixel, if known.
@@ -169,30 +167,267 @@ pub struct BankHeader {
     pub height_unit: String,
     /// Seed of the bake (random phases, crop positions).
     pub seed: u64,
-    /// Entries per T⁻¹ table.
-    pub lut_size: usize,
-    /// The tables cover standardised Gaussian values z ∈ [−lut_z_range, lut_z_range].
-    pub lut_z_range: f64,
     /// The exemplar's statistics.
     pub exemplar: ExemplarInfo,
     /// The bake parameters, as text.
     pub bake: String,
+    /// The placement rule and its own fields.
+    pub record: Record,
+}
+
+/// Each placement rule's own header fields, tagged by the rule: plain data. The
+/// sections of the model kinds (milling, RSGF, synth) are JSON that the kind's module
+/// decodes and checks when it opens the bank; `bank/` only carries them.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Record {
+    /// Blend rule: triangle edge E in pixels, and T⁻¹ tables of `lut_size` entries per
+    /// channel and level covering standardised z ∈ [−lut_z_range, lut_z_range].
+    Blend {
+        /// Triangle edge length E in pixels.
+        triangle_edge: f64,
+        /// Entries per T⁻¹ table.
+        lut_size: usize,
+        /// The tables' half range in standardised Gaussian values.
+        lut_z_range: f64,
+    },
     /// Toroidal rule: mean error per bin along each cut (u cut, v cut, then the closed
     /// cut of each further tile).
+    Toroidal {
+        /// Mean error per bin along each cut.
+        seam_costs: Vec<f64>,
+    },
+    /// Wang rule: K colours per edge direction (the bank holds K⁴ tiles).
+    Wang {
+        /// Colours per edge direction.
+        colours: usize,
+        /// Mean error per bin along the vertical and the interior cuts.
+        seam_costs: Vec<f64>,
+    },
+    /// Milling rule: a radial shape table of `lut_size` entries, and the configuration
+    /// with its height adaptation (`models::milling::MillingBankInfo`).
+    Milling {
+        /// Entries of the radial shape table.
+        lut_size: usize,
+        /// The configuration and adaptation.
+        info: serde_json::Value,
+    },
+    /// RSGF rule: the synthesis parameters and lattice (`stream::RsgfParams`).
+    Rsgf(serde_json::Value),
+    /// Synth rule: the synthesis parameters (`stream::synth::SynthParams`); its extra
+    /// tables hold one equal block per synthesis level (`levels`).
+    Synth(serde_json::Value),
+}
+
+impl Record {
+    /// The placement rule of this record.
+    pub fn rule(&self) -> Rule {
+        match self {
+            Record::Blend { .. } => Rule::Blend,
+            Record::Toroidal { .. } => Rule::Toroidal,
+            Record::Wang { .. } => Rule::Wang,
+            Record::Milling { .. } => Rule::Milling,
+            Record::Rsgf(_) => Rule::Rsgf,
+            Record::Synth(_) => Rule::Synth,
+        }
+    }
+}
+
+impl BankHeader {
+    /// The placement rule.
+    pub fn rule(&self) -> Rule {
+        self.record.rule()
+    }
+
+    /// Entries per channel of each level's table: T⁻¹ (blend) or the shape table
+    /// (milling); 0 for the other rules.
+    pub fn lut_size(&self) -> usize {
+        match self.record {
+            Record::Blend { lut_size, .. } | Record::Milling { lut_size, .. } => lut_size,
+            _ => 0,
+        }
+    }
+
+    /// The triangle edge E in pixels of a blend bank; 0 for the other rules.
+    pub fn triangle_edge(&self) -> f64 {
+        match self.record {
+            Record::Blend { triangle_edge, .. } => triangle_edge,
+            _ => 0.0,
+        }
+    }
+
+    /// The half range of a blend bank's T⁻¹ tables in standardised values; 0 for the
+    /// other rules.
+    pub fn lut_z_range(&self) -> f64 {
+        match self.record {
+            Record::Blend { lut_z_range, .. } => lut_z_range,
+            _ => 0.0,
+        }
+    }
+
+    /// The cut errors of a toroidal or Wang bank; empty for the other rules.
+    pub fn seam_costs(&self) -> &[f64] {
+        match &self.record {
+            Record::Toroidal { seam_costs } | Record::Wang { seam_costs, .. } => seam_costs,
+            _ => &[],
+        }
+    }
+
+    /// Decodes the JSON section of a model kind as `T`; `section` names it in errors.
+    pub fn decode<T: serde::de::DeserializeOwned>(
+        value: &serde_json::Value,
+        section: &str,
+        what: &str,
+    ) -> Result<T> {
+        T::deserialize(value)
+            .map_err(|e| Error::bank(what, format!("the {section} section is not valid: {e}")))
+    }
+}
+
+/// The header as format version 1 writes it: every rule's fields side by side, those
+/// of other rules absent or zero.
+#[derive(Serialize, Deserialize)]
+struct HeaderV1 {
+    rule: Rule,
+    method: Method,
+    channels: usize,
+    tiles: usize,
+    tile_size: [usize; 2],
+    lattice: [[f64; 2]; 2],
+    triangle_edge: f64,
+    levels: Vec<LevelInfo>,
+    spacing_um: Option<f64>,
+    height_unit: String,
+    seed: u64,
+    lut_size: usize,
+    lut_z_range: f64,
+    exemplar: ExemplarInfo,
+    bake: String,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub seam_costs: Vec<f64>,
-    /// Milling rule: the configuration and height adaptation.
+    seam_costs: Vec<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub milling: Option<crate::models::milling::MillingBankInfo>,
-    /// RSGF rule: the synthesis parameters and the lattice.
+    milling: Option<serde_json::Value>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rsgf: Option<crate::stream::RsgfParams>,
-    /// Wang rule: colours per edge direction, K (the bank holds K⁴ tiles).
+    rsgf: Option<serde_json::Value>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub wang_colours: Option<usize>,
-    /// Synth rule: the synthesis parameters; the extra tables hold one block per level.
+    wang_colours: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub synth: Option<crate::stream::synth::SynthParams>,
+    synth: Option<serde_json::Value>,
+}
+
+impl From<BankHeader> for HeaderV1 {
+    fn from(h: BankHeader) -> HeaderV1 {
+        let rule = h.rule();
+        let lut_size = h.lut_size();
+        let seam_costs = h.seam_costs().to_vec();
+        let (mut triangle_edge, mut lut_z_range) = (0.0, 0.0);
+        let (mut milling, mut rsgf, mut synth, mut wang_colours) = (None, None, None, None);
+        match h.record {
+            Record::Blend {
+                triangle_edge: e,
+                lut_z_range: z,
+                ..
+            } => (triangle_edge, lut_z_range) = (e, z),
+            Record::Toroidal { .. } => {}
+            Record::Wang { colours, .. } => wang_colours = Some(colours),
+            Record::Milling { info, .. } => {
+                // Version 1 milling banks record their shape table's range as 1.
+                lut_z_range = 1.0;
+                milling = Some(info);
+            }
+            Record::Rsgf(v) => rsgf = Some(v),
+            Record::Synth(v) => synth = Some(v),
+        }
+        HeaderV1 {
+            rule,
+            method: h.method,
+            channels: h.channels,
+            tiles: h.tiles,
+            tile_size: h.tile_size,
+            lattice: h.lattice,
+            triangle_edge,
+            levels: h.levels,
+            spacing_um: h.spacing_um,
+            height_unit: h.height_unit,
+            seed: h.seed,
+            lut_size,
+            lut_z_range,
+            exemplar: h.exemplar,
+            bake: h.bake,
+            seam_costs,
+            milling,
+            rsgf,
+            wang_colours,
+            synth,
+        }
+    }
+}
+
+impl TryFrom<HeaderV1> for BankHeader {
+    type Error = String;
+
+    /// Refuses a header with another rule's fields, or without its own.
+    fn try_from(v: HeaderV1) -> std::result::Result<BankHeader, String> {
+        let rule = v.rule;
+        let foreign = |present: bool, field: &str| -> std::result::Result<(), String> {
+            if present {
+                Err(format!(
+                    "a {rule} bank with the field {field} of another rule"
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        let missing = |field: &str| format!("a {rule} bank without its {field} section");
+        foreign(rule != Rule::Milling && v.milling.is_some(), "milling")?;
+        foreign(rule != Rule::Rsgf && v.rsgf.is_some(), "rsgf")?;
+        foreign(rule != Rule::Synth && v.synth.is_some(), "synth")?;
+        foreign(
+            rule != Rule::Wang && v.wang_colours.is_some(),
+            "wang_colours",
+        )?;
+        foreign(
+            !matches!(rule, Rule::Toroidal | Rule::Wang) && !v.seam_costs.is_empty(),
+            "seam_costs",
+        )?;
+        foreign(
+            !matches!(rule, Rule::Blend | Rule::Milling) && v.lut_size != 0,
+            "lut_size",
+        )?;
+        let record = match rule {
+            Rule::Blend => Record::Blend {
+                triangle_edge: v.triangle_edge,
+                lut_size: v.lut_size,
+                lut_z_range: v.lut_z_range,
+            },
+            Rule::Toroidal => Record::Toroidal {
+                seam_costs: v.seam_costs,
+            },
+            Rule::Wang => Record::Wang {
+                colours: v.wang_colours.ok_or_else(|| missing("wang_colours"))?,
+                seam_costs: v.seam_costs,
+            },
+            Rule::Milling => Record::Milling {
+                lut_size: v.lut_size,
+                info: v.milling.ok_or_else(|| missing("milling"))?,
+            },
+            Rule::Rsgf => Record::Rsgf(v.rsgf.ok_or_else(|| missing("rsgf"))?),
+            Rule::Synth => Record::Synth(v.synth.ok_or_else(|| missing("synth"))?),
+        };
+        Ok(BankHeader {
+            method: v.method,
+            channels: v.channels,
+            tiles: v.tiles,
+            tile_size: v.tile_size,
+            lattice: v.lattice,
+            levels: v.levels,
+            spacing_um: v.spacing_um,
+            height_unit: v.height_unit,
+            seed: v.seed,
+            exemplar: v.exemplar,
+            bake: v.bake,
+            record,
+        })
+    }
 }
 
 /// A bank in memory: header, texels per level and T⁻¹ tables per level.
@@ -205,8 +440,7 @@ pub struct Bank {
     /// Per level: `channels × lut_size` table entries.
     pub luts: Vec<Vec<f32>>,
     /// Tables beyond texels and T⁻¹ that a rule needs (synth: one block per synthesis
-    /// level, [`crate::stream::synth::SynthParams::values_per_pixel`] values per exemplar
-    /// pixel); empty for the other rules. Written after the T⁻¹ tables.
+    /// level, the synth kind's values per exemplar pixel); empty for the other rules. Written after the T⁻¹ tables.
     pub extra: Vec<Vec<f32>>,
 }
 
@@ -251,30 +485,31 @@ impl Bank {
         if h.tiles == 0 || h.tiles > 4096 {
             return bad(format!("{} tiles; expected 1 to 4096", h.tiles));
         }
-        if h.rule == Rule::Milling {
-            return self.validate_milling(what);
+        if matches!(h.rule(), Rule::Milling | Rule::Rsgf | Rule::Synth) {
+            return self.validate_model_layout(what);
         }
-        if h.rule == Rule::Rsgf {
-            return self.validate_rsgf(what);
-        }
-        if h.rule == Rule::Synth {
-            return self.validate_synth(what);
-        }
-        if !self.extra.is_empty() || h.synth.is_some() {
-            return bad(format!("a {} bank with synthesis tables", h.rule));
+        if !self.extra.is_empty() {
+            return bad(format!("a {} bank with synthesis tables", h.rule()));
         }
         let [w, ht] = h.tile_size;
-        let toroidal = matches!(h.rule, Rule::Toroidal | Rule::Wang);
-        if h.rule == Rule::Wang {
-            let k = h.wang_colours.unwrap_or(0);
+        let toroidal = matches!(h.rule(), Rule::Toroidal | Rule::Wang);
+        if let Record::Wang { colours: k, .. } = h.record {
             let b = h.levels.first().and_then(|l| l.shift);
             if k == 0 || k.checked_pow(4) != Some(h.tiles) || w != ht || b != Some(0) {
                 return bad(format!(
-                    "Wang bank with {:?} colours, {} tiles of {w}×{ht}, row shift {b:?}; expected K⁴ square tiles on a square lattice",
-                    h.wang_colours, h.tiles
+                    "Wang bank with {k} colours, {} tiles of {w}×{ht}, row shift {b:?}; expected K⁴ square tiles on a square lattice",
+                    h.tiles
                 ));
             }
         }
+        let (triangle_edge, lut_size, lut_z_range) = match h.record {
+            Record::Blend {
+                triangle_edge,
+                lut_size,
+                lut_z_range,
+            } => (triangle_edge, lut_size, lut_z_range),
+            _ => (0.0, 0, 0.0),
+        };
         let lattice = if toroidal {
             if w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 26 {
                 return bad(format!(
@@ -302,31 +537,19 @@ impl Bank {
                     "tile size {w}×{ht}; expected powers of two from 4 to 8192"
                 ));
             }
-            if !(h.triangle_edge.is_finite() && h.triangle_edge >= 1.0) {
-                return bad(format!(
-                    "triangle edge {}; expected ≥ 1 pixel",
-                    h.triangle_edge
-                ));
+            if !(triangle_edge.is_finite() && triangle_edge >= 1.0) {
+                return bad(format!("triangle edge {triangle_edge}; expected ≥ 1 pixel"));
             }
             None
         };
         if h.levels.is_empty() || h.levels.len() > 14 {
             return bad(format!("{} mip levels; expected 1 to 14", h.levels.len()));
         }
-        if toroidal && h.lut_size != 0 {
+        let tables_fit =
+            (2..=1 << 20).contains(&lut_size) && lut_z_range > 0.0 && lut_z_range.is_finite();
+        if !toroidal && !tables_fit {
             return bad(format!(
-                "T⁻¹ table of {} entries; the toroidal rule has none",
-                h.lut_size
-            ));
-        }
-        if !toroidal
-            && (h.lut_size < 2
-                || h.lut_size > 1 << 20
-                || !(h.lut_z_range > 0.0 && h.lut_z_range.is_finite()))
-        {
-            return bad(format!(
-                "T⁻¹ table of {} entries over ±{}",
-                h.lut_size, h.lut_z_range
+                "T⁻¹ table of {lut_size} entries over ±{lut_z_range}"
             ));
         }
         if let Some(s) = h.spacing_um
@@ -371,7 +594,7 @@ impl Bank {
             if self.texels[l].len() != h.tiles * expected[0] * expected[1] * h.channels {
                 return bad(format!("level {l} holds {} texels", self.texels[l].len()));
             }
-            if self.luts[l].len() != h.channels * h.lut_size {
+            if self.luts[l].len() != h.channels * lut_size {
                 return bad(format!(
                     "level {l} table holds {} entries",
                     self.luts[l].len()
@@ -380,7 +603,7 @@ impl Bank {
             if self.texels[l].iter().any(|v| !v.is_finite()) {
                 return bad(format!("level {l} has non-finite texels"));
             }
-            for table in self.luts[l].chunks_exact(h.lut_size.max(1)) {
+            for table in self.luts[l].chunks_exact(lut_size.max(1)) {
                 if table.iter().any(|v| !v.is_finite()) || table.windows(2).any(|p| p[1] < p[0]) {
                     return bad(format!(
                         "level {l} T⁻¹ table is not finite and non-decreasing"
@@ -391,167 +614,56 @@ impl Bank {
         Ok(())
     }
 
-    /// Validation of an RSGF bank: one tile (the exemplar) with its halvings, valid
-    /// parameters that fit it, finite texels.
-    fn validate_rsgf(&self, what: &str) -> Result<()> {
+    /// The layout checks of the model kinds' banks (milling, RSGF, synth): one block of
+    /// texels and one table per level with the sizes the header gives, finite values,
+    /// extra tables (synth only) in equal blocks. What the numbers must be for the kind
+    /// is checked by the kind's module when it opens the bank.
+    fn validate_model_layout(&self, what: &str) -> Result<()> {
         let h = &self.header;
         let bad = |m: String| Err(Error::bank(what, m));
-        let Some(params) = &h.rsgf else {
-            return bad("rsgf rule without an rsgf section".into());
-        };
-        let [w, ht] = h.tile_size;
-        if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
-            return bad(format!(
-                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
-                h.tiles
-            ));
-        }
-        params
-            .validate()
-            .and_then(|_| params.check_exemplar(w, ht))
-            .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
-        if h.levels.is_empty() || h.levels.len() > 14 || h.lut_size != 0 {
-            return bad(format!(
-                "{} levels and a table of {}; expected 1 to 14 levels and none",
-                h.levels.len(),
-                h.lut_size
-            ));
+        if h.levels.is_empty() || h.levels.len() > 14 {
+            return bad(format!("{} levels; expected 1 to 14", h.levels.len()));
         }
         if self.texels.len() != h.levels.len() || self.luts.len() != h.levels.len() {
             return bad("level count differs between header and data".into());
         }
         for (l, info) in h.levels.iter().enumerate() {
-            let expected = [w >> l, ht >> l];
-            if info.size != expected
-                || self.texels[l].len() != expected[0] * expected[1] * h.channels
-            {
-                return bad(format!(
-                    "level {l} is {:?} with {} texels; expected {expected:?}",
-                    info.size,
-                    self.texels[l].len()
-                ));
-            }
-            if self.texels[l].iter().any(|v| !v.is_finite()) {
-                return bad(format!("level {l} has non-finite texels"));
-            }
-        }
-        Ok(())
-    }
-
-    /// Validation of a synth bank: one tile (the exemplar), parameters that fit it, one
-    /// table block per level of the right length, finite values, candidate indices that
-    /// are whole numbers inside the exemplar.
-    fn validate_synth(&self, what: &str) -> Result<()> {
-        let h = &self.header;
-        let bad = |m: String| Err(Error::bank(what, m));
-        let Some(params) = &h.synth else {
-            return bad("synth rule without a synth section".into());
-        };
-        let [w, ht] = h.tile_size;
-        if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
-            return bad(format!(
-                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
-                h.tiles
-            ));
-        }
-        params
-            .validate()
-            .and_then(|_| params.check_exemplar(w, ht, h.channels))
-            .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
-        if h.levels.len() != 1
-            || h.levels[0].size != [w, ht]
-            || h.lut_size != 0
-            || self.texels.len() != 1
-            || self.luts.len() != 1
-            || self.texels[0].len() != w * ht * h.channels
-            || !self.luts[0].is_empty()
-        {
-            return bad("synth layout: expected the exemplar as one level and no table".into());
-        }
-        if self.extra.len() != params.levels {
-            return bad(format!(
-                "{} table blocks; expected one per synthesis level ({})",
-                self.extra.len(),
-                params.levels
-            ));
-        }
-        let per = params.values_per_pixel(h.channels);
-        let values = (h.channels + params.appearance_dims) * w * ht;
-        for (l, block) in self.extra.iter().enumerate() {
-            if block.len() != per * w * ht {
-                return bad(format!("level {l} holds {} table values", block.len()));
-            }
-            if block[..values].iter().any(|v| !v.is_finite())
-                || block[values..]
-                    .iter()
-                    .any(|&v| !(v >= 0.0 && v < (w * ht) as f32 && v.fract() == 0.0))
-            {
-                return bad(format!(
-                    "level {l} has non-finite values or candidates outside the exemplar"
-                ));
-            }
-        }
-        if self.texels[0].iter().any(|v| !v.is_finite()) {
-            return bad("the exemplar has non-finite texels".into());
-        }
-        Ok(())
-    }
-
-    /// Validation of a milling bank: one level of noise profiles, one shape table, and
-    /// a configuration that passes its own checks.
-    fn validate_milling(&self, what: &str) -> Result<()> {
-        use crate::models::milling::ring::{NOISE_PROFILES, NOISE_SAMPLES, SHAPE_LUT};
-        let h = &self.header;
-        let bad = |m: String| Err(Error::bank(what, m));
-        let Some(info) = &h.milling else {
-            return bad("milling rule without a milling section".into());
-        };
-        info.config
-            .validate()
-            .map_err(|e| Error::bank(what, format!("configuration: {e}")))?;
-        if h.channels != 1
-            || h.tiles != NOISE_PROFILES
-            || h.tile_size != [NOISE_SAMPLES, 1]
-            || h.levels.len() != 1
-            || h.levels[0].size != [NOISE_SAMPLES, 1]
-            || h.lut_size != SHAPE_LUT
-        {
-            return bad(format!(
-                "milling layout: expected 1 channel, {NOISE_PROFILES} noise profiles of {NOISE_SAMPLES} samples, 1 level and a shape table of {SHAPE_LUT}"
-            ));
-        }
-        if !h.spacing_um.is_some_and(|s| s.is_finite() && s > 0.0) {
-            return bad("milling bank without a positive pixel spacing".into());
-        }
-        if let Some(a) = &info.adaptation
-            && !(a.model_std_um > 0.0
-                && a.target_std_um > 0.0
-                && [
-                    a.model_mean_um,
-                    a.model_std_um,
-                    a.target_mean_um,
-                    a.target_std_um,
-                ]
+            let count = [info.size[0], info.size[1], h.channels]
                 .iter()
-                .all(|v| v.is_finite()))
-        {
-            return bad(format!(
-                "height adaptation {a:?} is not finite and positive"
-            ));
+                .try_fold(h.tiles, |n, &m| n.checked_mul(m));
+            let table = h.channels.checked_mul(h.lut_size());
+            if count != Some(self.texels[l].len()) || table != Some(self.luts[l].len()) {
+                return bad(format!(
+                    "level {l} holds {} texels and {} table entries",
+                    self.texels[l].len(),
+                    self.luts[l].len()
+                ));
+            }
+            if self.texels[l]
+                .iter()
+                .chain(&self.luts[l])
+                .any(|v| !v.is_finite())
+            {
+                return bad(format!("level {l} has non-finite values"));
+            }
         }
-        if self.texels.len() != 1 || self.luts.len() != 1 {
-            return bad("level count differs between header and data".into());
+        match &h.record {
+            Record::Synth(_)
+                if self.extra.is_empty()
+                    || self.extra.iter().any(|b| b.len() != self.extra[0].len()) =>
+            {
+                return bad("synthesis tables: expected one equal block per level".into());
+            }
+            Record::Synth(_) => {}
+            _ if !self.extra.is_empty() => {
+                return bad(format!("a {} bank with synthesis tables", h.rule()));
+            }
+            _ => {}
         }
-        if self.texels[0].len() != NOISE_PROFILES * NOISE_SAMPLES || self.luts[0].len() != SHAPE_LUT
+        if let Some(s) = h.spacing_um
+            && !(s.is_finite() && s > 0.0)
         {
-            return bad("milling tables have the wrong length".into());
-        }
-        if self.texels[0]
-            .iter()
-            .chain(&self.luts[0])
-            .any(|v| v.is_nan() || v.abs() > 1.0)
-        {
-            return bad("milling tables hold values outside [−1, 1]".into());
+            return bad(format!("pixel spacing {s} µm; expected a positive number"));
         }
         Ok(())
     }
@@ -631,17 +743,29 @@ impl Bank {
         }
         let mut luts = Vec::new();
         for _ in &header.levels {
-            luts.push(take(header.channels * header.lut_size)?);
+            luts.push(take(
+                header
+                    .channels
+                    .checked_mul(header.lut_size())
+                    .ok_or_else(|| bad("header sizes overflow"))?,
+            )?);
         }
         let mut extra = Vec::new();
-        if let Some(p) = &header.synth {
-            let per_level = header.tile_size[0]
-                .checked_mul(header.tile_size[1])
-                .and_then(|n| n.checked_mul(p.values_per_pixel(header.channels)))
-                .filter(|_| p.levels <= 12 && p.k <= 16 && p.appearance_dims <= 32)
-                .ok_or_else(|| bad("synthesis table sizes overflow"))?;
-            for _ in 0..p.levels {
-                extra.push(take(per_level)?);
+        if let Record::Synth(p) = &header.record {
+            // The rest of the payload, in one equal block per synthesis level.
+            let levels = p
+                .get("levels")
+                .and_then(|v| v.as_u64())
+                .filter(|&n| (1..=12).contains(&n))
+                .ok_or_else(|| bad("the synth section needs 1 to 12 levels"))?
+                as usize;
+            let used: usize = texels.iter().chain(&luts).map(|v| v.len() * 4).sum();
+            let rest = (payload.len() - used) / 4;
+            if !rest.is_multiple_of(levels) {
+                return Err(bad("synthesis tables do not split into equal levels"));
+            }
+            for _ in 0..levels {
+                extra.push(take(rest / levels)?);
             }
         }
         if offset != payload.len() {
@@ -669,19 +793,19 @@ impl Bank {
         let h = &self.header;
         serde_json::json!({
             "format_version": VERSION,
-            "rule": h.rule,
+            "rule": h.rule(),
             "method": h.method,
             "channels": h.channels,
             "tiles": h.tiles,
             "tile_size": h.tile_size,
             "lattice": h.lattice,
-            "triangle_edge": h.triangle_edge,
-            "seam_costs": h.seam_costs,
+            "triangle_edge": h.triangle_edge(),
+            "seam_costs": h.seam_costs(),
             "mip_levels": h.levels.len(),
             "spacing_um": h.spacing_um,
             "height_unit": h.height_unit,
             "seed": h.seed,
-            "lut_size": h.lut_size,
+            "lut_size": h.lut_size(),
             "exemplar": h.exemplar,
             "bake": h.bake,
             "file_bytes": file_bytes,

@@ -16,8 +16,9 @@ use wgpu::util::DeviceExt;
 
 use super::milling::GpuMilling;
 use super::shaders;
-use crate::bank::{Bank, Rule};
+use crate::bank::Bank;
 use crate::error::{Error, Result};
+use crate::kinds::{GpuFill, Loaded};
 use crate::models::milling::MillingSurface;
 use crate::stream::blend::BlendSurface;
 use crate::stream::toroidal::ToroidalSurface;
@@ -207,33 +208,48 @@ fn band_limit(device: &wgpu::Device) -> u64 {
 }
 
 impl GpuSurface {
-    /// Uploads `bank` for fills placed with `seed`. Blend, toroidal and milling banks run
-    /// on the GPU; RSGF banks are refused with [`Error::Unsupported`] (callers fall back
-    /// to the CPU).
+    /// Uploads what `source` needs for fills placed with `seed`, as its kind's
+    /// [`GpuFill`] says; a kind without a GPU twin is refused with
+    /// [`Error::Unsupported`] (callers fall back to the CPU).
+    pub fn for_source(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        source: &dyn Loaded,
+        seed: u32,
+    ) -> Result<GpuSurface> {
+        match (source.bank(), source.milling(seed)) {
+            (Some(bank), _) => GpuSurface::new(device, queue, bank, seed),
+            (None, Some(milling)) => GpuSurface::milling(device, milling?),
+            (None, None) => Err(unsupported(source.kind().name(), source.kind().gpu())),
+        }
+    }
+
+    /// Uploads `bank` for fills placed with `seed`, as its kind's [`GpuFill`] says:
+    /// blend, toroidal and milling banks run on the GPU; the others are refused with
+    /// [`Error::Unsupported`] (callers fall back to the CPU).
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         bank: &Bank,
         seed: u32,
     ) -> Result<GpuSurface> {
-        if bank.header.rule == Rule::Milling {
-            return GpuSurface::milling(device, MillingSurface::from_bank(bank, seed)?);
-        }
-        let (kind, module, entry) = match bank.header.rule {
-            Rule::Toroidal => (
+        let fill = crate::kinds::of_bank(bank).gpu();
+        let (kind, module, entry) = match fill {
+            GpuFill::Milling => {
+                return GpuSurface::milling(device, MillingSurface::from_bank(bank, seed)?);
+            }
+            GpuFill::Toroidal => (
                 Kind::Toroidal(ToroidalSurface::new(bank, seed)?),
                 "toroidal",
                 "fill_toroidal",
             ),
-            Rule::Blend => (
+            GpuFill::Blend => (
                 Kind::Blend(BlendSurface::new(bank, seed)?),
                 "blend",
                 "fill_blend",
             ),
-            rule => {
-                return Err(Error::Unsupported(format!(
-                    "{rule} banks on the GPU (blend, toroidal and milling banks run there; this one fills on the CPU)"
-                )));
+            GpuFill::Cpu(_) => {
+                return Err(unsupported(&bank.header.rule().to_string(), fill));
             }
         };
         let limit = band_limit(device);
@@ -872,4 +888,15 @@ pub fn gpu_hashes(
             sum: (o.sum[0] as u64 | (o.sum[1] as u64) << 32) as i64,
         })
         .collect())
+}
+
+/// The refusal of a kind without a GPU twin.
+fn unsupported(kind: &str, fill: GpuFill) -> Error {
+    let why = match fill {
+        GpuFill::Cpu(why) => why,
+        _ => "no GPU twin",
+    };
+    Error::Unsupported(format!(
+        "{kind} sources on the GPU ({why}; blend, toroidal and milling sources run there, this one fills on the CPU)"
+    ))
 }

@@ -140,6 +140,23 @@ impl GpuFilled {
         Ok(GpuFilled { gpu, surface })
     }
 
+    /// Opens a device and uploads what `source` needs, as its kind's
+    /// [`crate::kinds::GpuFill`] says. Fails with [`crate::Error::Unsupported`] for a
+    /// kind without a GPU twin (before looking for an adapter) and with
+    /// [`crate::Error::Gpu`] where there is no adapter, so a caller can fall back to
+    /// the CPU.
+    pub fn for_source(source: &dyn crate::kinds::Loaded, seed: u32) -> crate::Result<GpuFilled> {
+        if let crate::kinds::GpuFill::Cpu(why) = source.kind().gpu() {
+            return Err(crate::Error::Unsupported(format!(
+                "{} sources on the GPU ({why})",
+                source.kind().name()
+            )));
+        }
+        let gpu = Gpu::new()?;
+        let surface = GpuSurface::for_source(&gpu.device, &gpu.queue, source, seed)?;
+        Ok(GpuFilled { gpu, surface })
+    }
+
     /// A surface already on `gpu`'s device, filling there.
     pub fn from_parts(gpu: Gpu, surface: GpuSurface) -> GpuFilled {
         GpuFilled { gpu, surface }

@@ -80,10 +80,10 @@ impl BlendSurface {
     /// A surface over `bank` (which must use the blend rule), placed with `seed`.
     pub fn new(bank: &Bank, seed: u32) -> Result<BlendSurface> {
         let h = &bank.header;
-        if h.rule != Rule::Blend {
+        if h.rule() != Rule::Blend {
             return Err(Error::Unsupported(format!(
                 "rule {:?} in a blend surface",
-                h.rule
+                h.rule()
             )));
         }
         bank.validate("given to BlendSurface")?;
@@ -95,7 +95,7 @@ impl BlendSurface {
             .map(|(l, info)| {
                 let mut mean = [0.0f32; 4];
                 let mut lut_scale = [0.0f32; 4];
-                let per_sigma = (h.lut_size - 1) as f64 / (2.0 * h.lut_z_range);
+                let per_sigma = (h.lut_size() - 1) as f64 / (2.0 * h.lut_z_range());
                 for ch in 0..c {
                     mean[ch] = info.mean[ch] as f32;
                     lut_scale[ch] = if info.sigma[ch] > 1e-12 {
@@ -116,7 +116,7 @@ impl BlendSurface {
                     mean,
                     lut_scale,
                     lut: bank.luts[l]
-                        .chunks_exact(h.lut_size)
+                        .chunks_exact(h.lut_size())
                         .flat_map(|table| {
                             (0..table.len()).map(|k| {
                                 let next = table.get(k + 1).copied().unwrap_or(table[k]);
@@ -127,7 +127,7 @@ impl BlendSurface {
                 }
             })
             .collect();
-        let e = h.triangle_edge;
+        let e = h.triangle_edge();
         Ok(BlendSurface {
             seed,
             channels: c,
@@ -144,9 +144,9 @@ impl BlendSurface {
             } else {
                 0
             },
-            lut_size: h.lut_size,
-            lut_last: (h.lut_size - 1) as f32,
-            lut_centre: (h.lut_size - 1) as f32 / 2.0,
+            lut_size: h.lut_size(),
+            lut_last: (h.lut_size() - 1) as f32,
+            lut_centre: (h.lut_size() - 1) as f32 / 2.0,
         })
     }
 

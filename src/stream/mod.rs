@@ -22,21 +22,7 @@ pub use rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface};
 pub use synth::{SynthParams, SynthSurface};
 pub use toroidal::ToroidalSurface;
 
-use crate::bank::{Bank, Rule};
 use crate::error::{Error, Result, short};
-
-/// The surface a bank describes, by its placement rule, placed with `seed`.
-pub fn open(bank: &Bank, seed: u32) -> Result<Box<dyn Surface>> {
-    Ok(match bank.header.rule {
-        Rule::Blend => Box::new(BlendSurface::new(bank, seed)?),
-        Rule::Toroidal | Rule::Wang => Box::new(ToroidalSurface::new(bank, seed)?),
-        Rule::Milling => Box::new(crate::models::milling::MillingSurface::from_bank(
-            bank, seed,
-        )?),
-        Rule::Rsgf => Box::new(RsgfSurface::from_bank(bank, seed)?),
-        Rule::Synth => Box::new(SynthSurface::from_bank(bank, seed)?),
-    })
-}
 
 /// Largest coordinate magnitude a surface samples: 2⁵² pixels (4.5·10¹⁵). Beyond it an
 /// f64 has no fractional part left, so neighbouring pixels could not be told apart;

@@ -37,7 +37,7 @@ use std::ops::Range;
 use serde::{Deserialize, Serialize};
 
 use super::{Region, Surface, check_buffer, default_threads, floor_split, in_range};
-use crate::bank::{Bank, Rule};
+use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
 use crate::hash::hash_cell;
 
@@ -620,31 +620,13 @@ const FILL_BLOCK: usize = 256;
 impl SynthSurface {
     /// The surface of `bank` placed with `seed`.
     pub fn from_bank(bank: &Bank, seed: u32) -> Result<SynthSurface> {
+        let params = check_bank(bank, "synth bank")?;
         let h = &bank.header;
-        let (Rule::Synth, Some(params)) = (h.rule, &h.synth) else {
-            return Err(Error::bank(
-                "synth surface",
-                format!("a {} bank; expected a synth bank", h.rule),
-            ));
-        };
         let [w, ht] = h.tile_size;
         let c = h.channels;
-        let per = params.values_per_pixel(c);
-        if bank.extra.len() != params.levels {
-            return Err(Error::bank(
-                "synth surface",
-                "level count differs from the tables",
-            ));
-        }
         let mut levels = Vec::with_capacity(params.levels);
         for (l, block) in bank.extra.iter().enumerate() {
             let n = w * ht;
-            if block.len() != n * per {
-                return Err(Error::bank(
-                    "synth surface",
-                    "level tables have the wrong length",
-                ));
-            }
             let (stack, rest) = block.split_at(n * c);
             let (appearance, candidates) = rest.split_at(n * params.appearance_dims);
             levels.push(SynthLevel {
@@ -659,7 +641,7 @@ impl SynthSurface {
                 w,
                 h: ht,
                 channels: c,
-                params: params.clone(),
+                params,
                 levels,
             },
             seed,
@@ -835,6 +817,57 @@ impl Surface for SynthSurface {
     fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
         self.fill_threads(region, out, default_threads())
     }
+}
+
+/// The parameters of a synth bank, checked: one tile (the exemplar), parameters that
+/// fit it, one table block per level of the right length, finite values, candidate
+/// indices that are whole numbers inside the exemplar. `what` names the bank in errors.
+pub fn check_bank(bank: &Bank, what: &str) -> Result<SynthParams> {
+    let h = &bank.header;
+    let bad = |m: String| Err(Error::bank(what, m));
+    let Record::Synth(section) = &h.record else {
+        return bad(format!("a {} bank; expected a synth bank", h.rule()));
+    };
+    bank.validate(what)?;
+    let params: SynthParams = BankHeader::decode(section, "synth", what)?;
+    let [w, ht] = h.tile_size;
+    if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
+        return bad(format!(
+            "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
+            h.tiles
+        ));
+    }
+    params
+        .validate()
+        .and_then(|_| params.check_exemplar(w, ht, h.channels))
+        .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
+    if h.levels.len() != 1 || h.levels[0].size != [w, ht] || h.lut_size() != 0 {
+        return bad("synth layout: expected the exemplar as one level and no table".into());
+    }
+    if bank.extra.len() != params.levels {
+        return bad(format!(
+            "{} table blocks; expected one per synthesis level ({})",
+            bank.extra.len(),
+            params.levels
+        ));
+    }
+    let per = params.values_per_pixel(h.channels);
+    let values = (h.channels + params.appearance_dims) * w * ht;
+    for (l, block) in bank.extra.iter().enumerate() {
+        if block.len() != per * w * ht {
+            return bad(format!("level {l} holds {} table values", block.len()));
+        }
+        if block[..values].iter().any(|v| !v.is_finite())
+            || block[values..]
+                .iter()
+                .any(|&v| !(v >= 0.0 && v < (w * ht) as f32 && v.fract() == 0.0))
+        {
+            return bad(format!(
+                "level {l} has non-finite values or candidates outside the exemplar"
+            ));
+        }
+    }
+    Ok(params)
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@
 use std::ops::Range;
 
 use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
-use crate::bank::{Bank, Rule};
+use crate::bank::{Bank, Record, Rule};
 use crate::error::{Error, Result};
 use crate::hash::{hash_tile, hash_tile_keyed, pick_tile, tile_key, wang_tile};
 use crate::lattice::Lattice;
@@ -153,10 +153,10 @@ impl ToroidalSurface {
     /// `seed`. A Wang bank is a square lattice whose cells pick their tile by edge colours.
     pub fn new(bank: &Bank, seed: u32) -> Result<ToroidalSurface> {
         let h = &bank.header;
-        if !matches!(h.rule, Rule::Toroidal | Rule::Wang) {
+        if !matches!(h.rule(), Rule::Toroidal | Rule::Wang) {
             return Err(Error::Unsupported(format!(
                 "rule {} in a toroidal surface",
-                h.rule
+                h.rule()
             )));
         }
         bank.validate("given to ToroidalSurface")?;
@@ -181,7 +181,10 @@ impl ToroidalSurface {
                 }
             })
             .collect();
-        let wang = (h.rule == Rule::Wang).then(|| h.wang_colours.unwrap_or(1) as u32);
+        let wang = match h.record {
+            Record::Wang { colours, .. } => Some(colours as u32),
+            _ => None,
+        };
         Ok(Self::from_levels(
             seed,
             h.channels,

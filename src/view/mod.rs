@@ -34,10 +34,10 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::bank::Rule;
 use crate::error::{Error, Result};
 use crate::gpu::{Gpu, GpuSurface};
-use crate::stream::{Page, PageKey, PageStreamer, Region, Surface, View, default_threads, open};
+use crate::kinds::GpuFill;
+use crate::stream::{Page, PageKey, PageStreamer, Region, Surface, View, default_threads};
 use script::Step;
 
 /// What the viewer shows.
@@ -159,7 +159,8 @@ const MAX_POSITION: f64 = 1e15;
 /// Page side of the streamer, in samples.
 const PAGE: usize = 256;
 
-pub use crate::source::SourceSpec;
+/// A source as [`crate::open`] loads it.
+pub use crate::front::Source as SourceSpec;
 
 /// How a source's frames are filled.
 enum Fill {
@@ -201,41 +202,19 @@ impl Source {
         // loop's queue never waits behind a page's dispatch.
         // RSGF, Wang and synth banks have no GPU twin: CPU pages.
         // Seed 001 models and imperfection layers have no GPU twin either.
-        let on_gpu = layer.is_none()
-            && match spec {
-                SourceSpec::Bank(b) => {
-                    !matches!(b.header.rule, Rule::Rsgf | Rule::Wang | Rule::Synth)
-                }
-                SourceSpec::Milling { .. } => true,
-                SourceSpec::Model(_) => false,
-            };
-        let milling = match spec {
-            SourceSpec::Milling { .. } => true,
-            SourceSpec::Bank(b) => b.header.rule == Rule::Milling,
-            SourceSpec::Model(_) => false,
-        };
+        let gpu_fill = spec.kind().gpu();
+        let on_gpu = layer.is_none() && !matches!(gpu_fill, GpuFill::Cpu(_));
+        let milling = gpu_fill == GpuFill::Milling;
         let paged = milling || (gpu.info.device_type == wgpu::DeviceType::Cpu && !direct);
         let fill_gpu = if on_gpu && paged {
             Gpu::from_adapter(gpu.adapter.clone())?
         } else {
             gpu.clone()
         };
-        let (cpu, gpu_surface): (Arc<dyn Surface>, Option<GpuSurface>) = match spec {
-            SourceSpec::Bank(bank) => (
-                Arc::from(open(bank, seed)?),
-                on_gpu
-                    .then(|| GpuSurface::new(&fill_gpu.device, &fill_gpu.queue, bank, seed))
-                    .transpose()?,
-            ),
-            SourceSpec::Milling { .. } => {
-                let m = spec.milling(seed)?.expect("a milling spec");
-                let g = on_gpu
-                    .then(|| GpuSurface::milling(&fill_gpu.device, m.clone()))
-                    .transpose()?;
-                (Arc::new(m), g)
-            }
-            SourceSpec::Model(m) => (Arc::from(m.surface(seed)?), None),
-        };
+        let cpu: Arc<dyn Surface> = Arc::from(spec.loaded().surface(seed)?);
+        let gpu_surface = on_gpu
+            .then(|| GpuSurface::for_source(&fill_gpu.device, &fill_gpu.queue, spec.loaded(), seed))
+            .transpose()?;
         let workers = default_threads().clamp(1, 16);
         // An imperfection layer over the surface: its heights and, for the mask view,
         // its layer ids, both through CPU pages.
@@ -1099,7 +1078,9 @@ impl Session {
 /// frame-time summary at the end and writes the screenshot, if asked.
 pub fn run(source: &Path, options: ViewOptions) -> Result<()> {
     options.validate()?;
-    let spec = SourceSpec::load(source, options.spacing_um)?;
+    let spec = crate::Open::new(source)
+        .spacing_um(options.spacing_um)
+        .open()?;
     if options.headless {
         let mut session = Session::new(Gpu::new()?, spec, options)?;
         eprintln!("view: drawing on {}", session.gpu().describe());

@@ -47,7 +47,7 @@ use std::ops::Range;
 
 use smallvec::SmallVec;
 
-use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Rule};
+use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::{Error, Result};
 use crate::stream::{Region, Surface, fill_rows_by_sample, in_range};
 use config::InteractionKind;
@@ -838,14 +838,18 @@ impl MillingSurface {
     /// A bank holding this surface's configuration, tables and adaptation
     /// (`surftile bake --method milling`).
     pub fn to_bank(&self, source: &str) -> Result<Bank> {
+        let info = MillingBankInfo {
+            config: self.config.clone(),
+            adaptation: self.adaptation,
+        };
+        let info = serde_json::to_value(&info)
+            .map_err(|e| Error::bank(source, format!("milling section: {e}")))?;
         let header = BankHeader {
-            rule: Rule::Milling,
             method: Method::Milling,
             channels: 1,
             tiles: NOISE_PROFILES,
             tile_size: [NOISE_SAMPLES, 1],
             lattice: [[0.0; 2]; 2],
-            triangle_edge: 0.0,
             levels: vec![LevelInfo {
                 size: [NOISE_SAMPLES, 1],
                 mean: vec![0.0],
@@ -855,8 +859,6 @@ impl MillingSurface {
             spacing_um: Some(self.spacing_um()),
             height_unit: "um".into(),
             seed: 0,
-            lut_size: SHAPE_LUT,
-            lut_z_range: 1.0,
             exemplar: ExemplarInfo {
                 source: source.into(),
                 width: 0,
@@ -867,14 +869,10 @@ impl MillingSurface {
                 quantiles: vec![Vec::new()],
             },
             bake: format!("method=milling config={source}"),
-            seam_costs: Vec::new(),
-            milling: Some(MillingBankInfo {
-                config: self.config.clone(),
-                adaptation: self.adaptation,
-            }),
-            rsgf: None,
-            wang_colours: None,
-            synth: None,
+            record: Record::Milling {
+                lut_size: SHAPE_LUT,
+                info,
+            },
         };
         Bank::new(
             header,
@@ -887,12 +885,8 @@ impl MillingSurface {
     /// The surface a milling bank describes, with placement seed `seed` for the rings
     /// (the noise profiles are the bank's).
     pub fn from_bank(bank: &Bank, seed: u32) -> Result<MillingSurface> {
+        let info = check_bank(bank, "milling bank")?;
         let h = &bank.header;
-        let info = h
-            .milling
-            .as_ref()
-            .ok_or_else(|| Error::bank("(milling)", "the header has no milling section"))?;
-        info.config.validate()?;
         Self::from_parts(
             &info.config,
             h.spacing_um.unwrap_or(1.0),
@@ -1022,6 +1016,60 @@ impl<'a> BruteForce<'a> {
         }
         s.adapt(f)
     }
+}
+
+/// The configuration and adaptation of a milling bank, checked: one level of noise
+/// profiles, one shape table, a configuration that passes its own checks, a positive
+/// spacing, a finite adaptation, tables within [−1, 1]. `what` names the bank in errors.
+pub fn check_bank(bank: &Bank, what: &str) -> Result<MillingBankInfo> {
+    let h = &bank.header;
+    let bad = |m: String| Err(Error::bank(what, m));
+    let Record::Milling { info, .. } = &h.record else {
+        return bad(format!("a {} bank; expected a milling bank", h.rule()));
+    };
+    bank.validate(what)?;
+    let info: MillingBankInfo = BankHeader::decode(info, "milling", what)?;
+    info.config
+        .validate()
+        .map_err(|e| Error::bank(what, format!("configuration: {e}")))?;
+    if h.channels != 1
+        || h.tiles != NOISE_PROFILES
+        || h.tile_size != [NOISE_SAMPLES, 1]
+        || h.levels.len() != 1
+        || h.levels[0].size != [NOISE_SAMPLES, 1]
+        || h.lut_size() != SHAPE_LUT
+    {
+        return bad(format!(
+            "milling layout: expected 1 channel, {NOISE_PROFILES} noise profiles of {NOISE_SAMPLES} samples, 1 level and a shape table of {SHAPE_LUT}"
+        ));
+    }
+    if !h.spacing_um.is_some_and(|s| s.is_finite() && s > 0.0) {
+        return bad("milling bank without a positive pixel spacing".into());
+    }
+    if let Some(a) = &info.adaptation
+        && !(a.model_std_um > 0.0
+            && a.target_std_um > 0.0
+            && [
+                a.model_mean_um,
+                a.model_std_um,
+                a.target_mean_um,
+                a.target_std_um,
+            ]
+            .iter()
+            .all(|v| v.is_finite()))
+    {
+        return bad(format!(
+            "height adaptation {a:?} is not finite and positive"
+        ));
+    }
+    if bank.texels[0]
+        .iter()
+        .chain(&bank.luts[0])
+        .any(|v| v.is_nan() || v.abs() > 1.0)
+    {
+        return bad("milling tables hold values outside [−1, 1]".into());
+    }
+    Ok(info)
 }
 
 #[cfg(test)]

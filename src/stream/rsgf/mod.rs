@@ -29,7 +29,7 @@ use model::Edge;
 pub use model::{MAX_EXEMPLAR_PIXELS, RsgfModel};
 
 use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
-use crate::bank::{Bank, Rule};
+use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
@@ -228,19 +228,13 @@ impl RsgfSurface {
         }
     }
 
-    /// The surface an RSGF bank describes (rule `rsgf`).
+    /// The surface an RSGF bank describes (rule `rsgf`), checked by [`check_bank`].
     pub fn from_bank(bank: &Bank, seed: u32) -> Result<RsgfSurface> {
+        let params = check_bank(bank, "RSGF bank")?;
         let h = &bank.header;
-        let (Rule::Rsgf, Some(params)) = (h.rule, &h.rsgf) else {
-            return Err(Error::bank(
-                "RSGF surface",
-                format!("a {} bank; expected the rsgf rule", h.rule),
-            ));
-        };
-        bank.validate("RSGF bank")?;
         let [w, ht] = h.tile_size;
         let ex = Raster::from_vec(w, ht, h.channels, bank.texels[0].clone())?;
-        RsgfSurface::new(&ex, params, seed)
+        RsgfSurface::new(&ex, &params, seed)
     }
 
     /// Keeps at most `blocks` solved gaps and as many cuts (≥ 1).
@@ -599,4 +593,44 @@ impl Surface for RsgfSurface {
             self.compose_rows(&blocks, &cuts, (x0, y0), region.width, rows, chunk)
         })
     }
+}
+
+/// The parameters of an RSGF bank, checked: one tile (the exemplar) with its halvings,
+/// valid parameters that fit it, finite texels. `what` names the bank in errors.
+pub fn check_bank(bank: &Bank, what: &str) -> Result<RsgfParams> {
+    let h = &bank.header;
+    let bad = |m: String| Err(Error::bank(what, m));
+    let Record::Rsgf(section) = &h.record else {
+        return bad(format!("a {} bank; expected the rsgf rule", h.rule()));
+    };
+    bank.validate(what)?;
+    let params: RsgfParams = BankHeader::decode(section, "rsgf", what)?;
+    let [w, ht] = h.tile_size;
+    if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
+        return bad(format!(
+            "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
+            h.tiles
+        ));
+    }
+    params
+        .validate()
+        .and_then(|_| params.check_exemplar(w, ht))
+        .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
+    if h.levels.is_empty() || h.levels.len() > 14 || h.lut_size() != 0 {
+        return bad(format!(
+            "{} levels and a table of {}; expected 1 to 14 levels and none",
+            h.levels.len(),
+            h.lut_size()
+        ));
+    }
+    for (l, info) in h.levels.iter().enumerate() {
+        let expected = [w >> l, ht >> l];
+        if info.size != expected {
+            return bad(format!(
+                "level {l} is {:?}; expected {expected:?}",
+                info.size
+            ));
+        }
+    }
+    Ok(params)
 }
