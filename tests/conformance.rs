@@ -1,7 +1,7 @@
 //! One conformance suite for every kind in the registry (`surftile::kinds::KINDS`),
 //! each opened through the front door (`surftile::open`) from a file or preset:
 //! - split invariance: 4 random sub-regions equal the whole, bit for bit, on 1 and 2
-//!   threads, near the origin and at x = −10⁹;
+//!   threads, near the origin, at x = −10⁹ and at 10¹², at steps 1, 2.5 and 0.75;
 //! - fill ⇄ sample: `fill` equals `sample_footprint` pixel by pixel, at step 1 and at a
 //!   zoomed-out step;
 //! - NaN and refusal outside the coordinate range: NaN samples, refused fills;
@@ -45,9 +45,10 @@ fn bake(method: Method, exemplar: &str) -> Bank {
     let image = read_image(&common::repo(exemplar), &ReadOptions::default()).unwrap();
     let builder = Baker::builder().method(method).seed(2);
     let baker = match method {
+        // Photos in stochastic mode; the ridged profile on its estimated lattice.
         Method::Rsgf => builder
             .rsgf(RsgfOptions {
-                stochastic: true,
+                stochastic: exemplar.ends_with(".png"),
                 ..RsgfOptions::default()
             })
             .build(),
@@ -71,14 +72,14 @@ fn examples(kind: &str) -> Vec<String> {
             "toroidal",
             bake(Method::Roller, "tiles/di-6.npy"),
         )],
-        "wang" => vec![write_bank(
-            "wang",
-            bake(Method::Quilt, "tiles/di-6.npy"),
-        )],
-        "rsgf" => vec![write_bank(
-            "rsgf",
-            bake(Method::Rsgf, "tests/data/gimp-dried-mud.png"),
-        )],
+        "wang" => vec![write_bank("wang", bake(Method::Quilt, "tiles/di-6.npy"))],
+        "rsgf" => vec![
+            write_bank(
+                "rsgf-stochastic",
+                bake(Method::Rsgf, "tests/data/gimp-dried-mud.png"),
+            ),
+            write_bank("rsgf-lattice", bake(Method::Rsgf, "tiles/x3p-2-crop.npy")),
+        ],
         "synth" => vec![write_bank(
             "synth",
             bake(Method::Synth, "tests/data/gimp-dried-mud.png"),
@@ -113,11 +114,16 @@ fn same_bits(a: &[f32], b: &[f32]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
-/// Split invariance: 4 random sub-regions of a region equal the whole on 1 and 2
-/// threads.
-fn split_invariance(name: &str, s: &dyn Surface, x: f64, y: f64, rng: &mut Xoshiro256PlusPlus) {
+/// Split invariance: 4 random sub-regions of a region at (x, y) with `step` equal the
+/// whole on 1 and 2 threads.
+fn split_invariance(
+    name: &str,
+    s: &dyn Surface,
+    (x, y, step): (f64, f64, f64),
+    rng: &mut Xoshiro256PlusPlus,
+) {
     let c = s.channels();
-    let whole_region = Region::new(x, y, 96, 72);
+    let whole_region = Region::new(x, y, 96, 72).with_step(step);
     let whole = filled(s, &whole_region, 2);
     assert!(
         whole.iter().all(|v| v.is_finite()),
@@ -132,8 +138,11 @@ fn split_invariance(name: &str, s: &dyn Surface, x: f64, y: f64, rng: &mut Xoshi
             for r in 0..h {
                 let from = ((row + r) * 96 + col) * c;
                 assert!(
-                    same_bits(&part[r * w * c..(r + 1) * w * c], &whole[from..from + w * c]),
-                    "{name}: sub-region {k} ({col}, {row}, {w}×{h}) at ({x}, {y}) differs from the whole on {threads} thread(s), row {r}"
+                    same_bits(
+                        &part[r * w * c..(r + 1) * w * c],
+                        &whole[from..from + w * c]
+                    ),
+                    "{name}: sub-region {k} ({col}, {row}, {w}×{h}) at ({x}, {y}) step {step} differs from the whole on {threads} thread(s), row {r}"
                 );
             }
         }
@@ -143,7 +152,12 @@ fn split_invariance(name: &str, s: &dyn Surface, x: f64, y: f64, rng: &mut Xoshi
 /// fill ⇄ sample at 40 random pixels of a region, at step 1 and step 3.
 fn fill_matches_sample(name: &str, s: &dyn Surface, rng: &mut Xoshiro256PlusPlus) {
     let c = s.channels();
-    for (x, y, step) in [(-37.25, 12.5, 1.0), (1e9 + 0.5, -3e8, 1.0), (500.0, -20.0, 3.0)] {
+    for (x, y, step) in [
+        (-37.25, 12.5, 1.0),
+        (1e9 + 0.5, -3e8, 1.0),
+        (500.0, -20.0, 3.0),
+        (-7.0, 3.5, 0.75),
+    ] {
         let region = Region::new(x, y, 48, 40).with_step(step);
         let out = filled(s, &region, 2);
         let mut v = vec![0.0f32; c];
@@ -171,7 +185,10 @@ fn refuses_outside(name: &str, s: &dyn Surface) {
         (f64::INFINITY, 1.0),
     ] {
         s.sample(x, y, &mut v);
-        assert!(v.iter().all(|v| v.is_nan()), "{name}: sample at ({x}, {y}) is {v:?}");
+        assert!(
+            v.iter().all(|v| v.is_nan()),
+            "{name}: sample at ({x}, {y}) is {v:?}"
+        );
         assert!(s.height(x, y).is_nan(), "{name}: height at ({x}, {y})");
     }
     for region in [
@@ -181,7 +198,12 @@ fn refuses_outside(name: &str, s: &dyn Surface) {
     ] {
         let mut out = vec![0.0f32; 64 * s.channels()];
         let e = s.fill(&region, &mut out);
-        assert!(e.is_err(), "{name}: a fill at ({}, {}) was not refused", region.x, region.y);
+        assert!(
+            e.is_err(),
+            "{name}: a fill at ({}, {}) was not refused",
+            region.x,
+            region.y
+        );
         let text = e.unwrap_err().to_string();
         assert!(!text.contains('\n'), "{name}: one line: {text}");
     }
@@ -226,8 +248,14 @@ fn every_kind_conforms() {
             let surface = source.surface(5).unwrap();
             let name = format!("{} ({spec})", kind.name());
             let s = surface.as_ref();
-            split_invariance(&name, s, 3.5, -7.25, &mut rng);
-            split_invariance(&name, s, -1e9, 2.5e8, &mut rng);
+            for at in [
+                (3.5, -7.25, 1.0),
+                (-1e9, 2.5e8, 1.0),
+                (-12345.5, 678.25, 2.5),
+                (1e12, -1e12, 0.75),
+            ] {
+                split_invariance(&name, s, at, &mut rng);
+            }
             fill_matches_sample(&name, s, &mut rng);
             refuses_outside(&name, s);
             same_cost_far_away(&name, s);
@@ -257,4 +285,52 @@ fn every_rule_has_one_kind() {
             .collect();
         assert_eq!(kinds.len(), 1, "{rule}: {kinds:?}");
     }
+}
+
+/// The suite can fail: a surface whose fill depends on where a region starts (a split
+/// shows), and one whose samples disagree with its fill, are both caught.
+#[test]
+fn the_checks_catch_broken_surfaces() {
+    use std::ops::Range;
+    struct Broken {
+        inner: Box<dyn Surface>,
+        /// Adds the region's column offset to filled values (split-dependent).
+        by_split: bool,
+    }
+    impl Surface for Broken {
+        fn channels(&self) -> usize {
+            self.inner.channels()
+        }
+        fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+            self.inner.sample_footprint(x, y, footprint, out);
+        }
+        fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+            self.inner.fill_rows(region, rows, out);
+            let bias = if self.by_split {
+                region.col0 as f32
+            } else {
+                1e-3
+            };
+            out.iter_mut().for_each(|v| *v += bias);
+        }
+    }
+    let surface = |by_split| Broken {
+        inner: surftile::open("rock").unwrap().surface(1).unwrap(),
+        by_split,
+    };
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+    let split = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        split_invariance("broken", &surface(true), (0.0, 0.0, 1.0), &mut rng)
+    }));
+    assert!(
+        split.is_err(),
+        "a split-dependent fill passed split invariance"
+    );
+    let twin = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        fill_matches_sample("broken", &surface(false), &mut rng)
+    }));
+    assert!(
+        twin.is_err(),
+        "a fill that is not its samples passed fill ⇄ sample"
+    );
 }

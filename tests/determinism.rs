@@ -5,75 +5,10 @@ mod common;
 
 use surftile::Raster;
 use surftile::stats::wasserstein1_standardised;
-use surftile::stream::{BlendSurface, MAX_COORDINATE, Region, Surface, fill_parallel};
+use surftile::stream::{BlendSurface, MAX_COORDINATE, Region, Surface};
 
 fn surface() -> BlendSurface {
     BlendSurface::new(common::demo_bank(), 42).unwrap()
-}
-
-/// Acceptance (issue 2): a 1000×700 region at (−123456.5, 987654.25) equals, bit for
-/// bit, the same region assembled from 4 quadrants filled in reverse order, on 1 thread
-/// and on 2.
-#[test]
-fn quadrants_in_reverse_order_match_the_whole_on_1_and_2_threads() {
-    let s = surface();
-    let (x0, y0, w, h) = (-123456.5, 987654.25, 1000usize, 700usize);
-    let whole_region = Region::new(x0, y0, w, h);
-    let mut whole = vec![0.0f32; w * h];
-    fill_parallel(&s, &whole_region, &mut whole, 2).unwrap();
-    // Quadrants built independently from their own origins, not as sub-regions.
-    let (hw, hh) = (w / 2, h / 2);
-    let quads = [(0, 0), (hw, 0), (0, hh), (hw, hh)];
-    for threads in [1, 2] {
-        let mut assembled = vec![f32::NAN; w * h];
-        for &(qx, qy) in quads.iter().rev() {
-            let region = Region::new(x0 + qx as f64, y0 + qy as f64, hw, hh);
-            let mut part = vec![0.0f32; hw * hh];
-            fill_parallel(&s, &region, &mut part, threads).unwrap();
-            for row in 0..hh {
-                assembled[(qy + row) * w + qx..(qy + row) * w + qx + hw]
-                    .copy_from_slice(&part[row * hw..(row + 1) * hw]);
-            }
-        }
-        let same = whole
-            .iter()
-            .zip(&assembled)
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(
-            same,
-            "quadrants on {threads} thread(s) differ from the whole"
-        );
-    }
-}
-
-/// The slow twin: `fill` equals `sample` called pixel by pixel, bit for bit, at step 1
-/// and at zoomed-out steps (including a non-power-of-two step that blends two levels),
-/// near the origin, across negative coordinates and far away.
-#[test]
-fn fill_matches_sample_per_pixel() {
-    let s = surface();
-    for (x, y, step) in [
-        (-37.25, -12.5, 1.0),
-        (3.0, 5.0, 1.0),
-        (1e9 + 0.5, -2e9, 1.0),
-        (-500.0, 20.0, 4.0),
-        (7.0, 7.0, 3.0),
-    ] {
-        let region = Region::new(x, y, 67, 41).with_step(step);
-        let mut out = vec![0.0f32; region.len()];
-        s.fill(&region, &mut out).unwrap();
-        for row in 0..region.height {
-            for col in 0..region.width {
-                let mut v = [0.0f32];
-                s.sample_footprint(region.x_at(col), region.y_at(row), step, &mut v);
-                assert_eq!(
-                    v[0].to_bits(),
-                    out[row * region.width + col].to_bits(),
-                    "({x}, {y}) step {step} at ({col}, {row})"
-                );
-            }
-        }
-    }
 }
 
 /// Sub-regions made with `Region::sub` reproduce the whole exactly even with a step that

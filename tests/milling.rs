@@ -276,32 +276,6 @@ fn spiral_turn_spacing_measured_back_from_a_render() {
     assert!((rho - 1.6).abs() <= 0.02 * 1.6, "ρ = {rho}");
 }
 
-#[test]
-fn fills_are_split_and_thread_invariant_and_far_regions_are_finite() {
-    let c = config("[path]\nkind = \"spiral\"\nreorder = 0.2\n");
-    let s = MillingSurface::new(&c, 8.0, 2).unwrap();
-    let region = Region::new(-37.5, 12.25, 96, 64);
-    let mut one = vec![0.0f32; 96 * 64];
-    let mut two = vec![0.0f32; 96 * 64];
-    fill_parallel(&s, &region, &mut one, 1).unwrap();
-    fill_parallel(&s, &region, &mut two, 2).unwrap();
-    assert_eq!(one, two);
-    let sub = region.sub(10, 20, 30, 17).unwrap();
-    let mut piece = vec![0.0f32; 30 * 17];
-    s.fill(&sub, &mut piece).unwrap();
-    for r in 0..17 {
-        assert_eq!(
-            piece[r * 30..(r + 1) * 30],
-            one[(20 + r) * 96 + 10..(20 + r) * 96 + 40]
-        );
-    }
-    for (x, y) in [(1e9, -3e8), (-4e12, 7e11)] {
-        assert!(s.height(x, y).is_finite(), "({x}, {y})");
-    }
-    assert!(s.height(f64::NAN, 0.0).is_nan());
-    assert!(s.height(1e300, 0.0).is_nan());
-}
-
 /// A bank holds everything: the surface read back from bytes gives the same heights.
 #[test]
 fn milling_banks_round_trip() {

@@ -226,37 +226,6 @@ fn four_tiles_repeat_less_than_one() {
     assert!(four < one, "4 tiles {four} vs 1 tile {one}");
 }
 
-/// Splits and thread counts give the same bits, at fractional offsets and zoomed out.
-#[test]
-fn toroidal_fills_are_split_invariant() {
-    let s = ToroidalSurface::new(roller_bank(4), 11).unwrap();
-    for step in [1.0, 0.75, 3.0] {
-        let whole = Region::new(-12345.5, 67890.25, 300, 200).with_step(step);
-        let mut a = vec![0.0f32; whole.len()];
-        surftile::stream::fill_parallel(&s, &whole, &mut a, 1).unwrap();
-        let mut b = vec![0.0f32; whole.len()];
-        for (c0, r0, w, h) in [
-            (150, 100, 150, 100),
-            (0, 0, 150, 100),
-            (150, 0, 150, 100),
-            (0, 100, 150, 100),
-        ] {
-            let sub = whole.sub(c0, r0, w, h).unwrap();
-            let mut part = vec![0.0f32; sub.len()];
-            surftile::stream::fill_parallel(&s, &sub, &mut part, 2).unwrap();
-            for row in 0..h {
-                b[(r0 + row) * 300 + c0..(r0 + row) * 300 + c0 + w]
-                    .copy_from_slice(&part[row * w..(row + 1) * w]);
-            }
-        }
-        assert!(
-            a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()),
-            "step {step}"
-        );
-        assert!(a.iter().all(|v| v.is_finite()));
-    }
-}
-
 /// Without `tiles`, the roller cuts several tiles with identical borders (seed 003), and
 /// fewer only where the exemplar does not hold them: 4 from the 512² di-6 map, fewer
 /// (with a line saying so) from an exemplar just large enough for one tile of its

@@ -188,60 +188,6 @@ fn streamed_regions_equal_the_sequential_reference() {
     }
 }
 
-/// Far from the origin (x = ±10⁹, 10¹²), a region split in four and filled in any
-/// order on one thread equals the whole filled on two, on a lattice and in stochastic
-/// mode (the method `auto` picks for photos).
-#[test]
-fn far_regions_split_any_way_agree() {
-    let (u, v) = ((23, 0), (9, 19));
-    let ex = near_regular(128, 128, u, v, 1);
-    for params in [RsgfParams::new(u, v), RsgfParams::stochastic()] {
-        for (x0, y0) in [
-            (1.0e9, -3.0e9 + 7.0),
-            (-1.0e9 + 3.0, 5.0e8),
-            (-4.0e12 + 13.0, 2.5e12),
-        ] {
-            let whole_surface = RsgfSurface::new(&ex, &params, 5).unwrap();
-            let (w, h) = (150, 110);
-            let mut whole = vec![0.0f32; w * h];
-            surftile::stream::fill_parallel(
-                &whole_surface,
-                &Region::new(x0, y0, w, h),
-                &mut whole,
-                2,
-            )
-            .unwrap();
-            let split = RsgfSurface::new(&ex, &params, 5).unwrap();
-            for &(x, y, pw, ph) in [
-                (70, 50, 80, 60),
-                (0, 0, 70, 50),
-                (70, 0, 80, 50),
-                (0, 50, 70, 60),
-            ]
-            .iter()
-            {
-                let mut part = vec![0.0f32; pw * ph];
-                surftile::stream::fill_parallel(
-                    &split,
-                    &Region::new(x0 + x as f64, y0 + y as f64, pw, ph),
-                    &mut part,
-                    1,
-                )
-                .unwrap();
-                for row in 0..ph {
-                    let want = &whole[(y + row) * w + x..(y + row) * w + x + pw];
-                    assert_same_bits(
-                        &part[row * pw..(row + 1) * pw],
-                        want,
-                        &format!("{:?} ({x0}, {y0}) part {x},{y}", params.metric),
-                    );
-                }
-            }
-            assert!(whole.iter().all(|v| v.is_finite()));
-        }
-    }
-}
-
 /// Random blocks show patches at lattice multiples of their own position (§4.1).
 #[test]
 fn random_blocks_sit_at_lattice_multiples() {

@@ -8,7 +8,6 @@ use surftile::bank::{Bank, Method};
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
 use surftile::raster::Raster;
-use surftile::stream::synth::SynthSurface;
 use surftile::stream::{Region, Surface, SynthParams};
 
 fn mud() -> Raster {
@@ -18,56 +17,6 @@ fn mud() -> Raster {
     )
     .unwrap()
     .raster
-}
-
-fn surface() -> SynthSurface {
-    let model = synth_model(&mud(), &SynthParams::default()).unwrap();
-    SynthSurface::new(model, 3)
-}
-
-/// 4 sub-regions at pseudo-random places inside a 256² region equal the whole, bit for
-/// bit, filled on 1 and 2 threads, at the origin and at x = −10⁹.
-#[test]
-fn sub_regions_equal_the_whole_bit_for_bit() {
-    let s = surface();
-    let c = s.channels();
-    for origin in [(0.0, 0.0), (-1e9, 37.0)] {
-        let whole = Region::new(origin.0, origin.1, 256, 256);
-        let mut all = vec![0.0f32; 256 * 256 * c];
-        s.fill_threads(&whole, &mut all, 2).unwrap();
-        let mut one = vec![0.0f32; 256 * 256 * c];
-        s.fill_threads(&whole, &mut one, 1).unwrap();
-        assert!(all == one, "1 and 2 threads differ at {origin:?}");
-        assert!(all.iter().all(|v| v.is_finite()));
-        let mut state = 0x9E37_79B9_7F4A_7C15u64 ^ origin.0.to_bits();
-        for _ in 0..4 {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let (col, row) = ((state >> 33) as usize % 200, (state >> 13) as usize % 200);
-            let (w, h) = (
-                1 + (state >> 50) as usize % 56,
-                1 + (state >> 40) as usize % 56,
-            );
-            let sub = whole.sub(col, row, w, h).unwrap();
-            for threads in [1, 2] {
-                let mut part = vec![0.0f32; w * h * c];
-                s.fill_threads(&sub, &mut part, threads).unwrap();
-                for r in 0..h {
-                    let a = &all[((row + r) * 256 + col) * c..((row + r) * 256 + col + w) * c];
-                    let b = &part[r * w * c..(r + 1) * w * c];
-                    assert!(
-                        a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
-                        "{w}×{h} at ({col}, {row}) of {origin:?}, {threads} threads"
-                    );
-                }
-            }
-        }
-        // A single point is the same bits as the fill.
-        let mut px = vec![0.0f32; c];
-        s.sample(origin.0 + 17.0, origin.1 + 5.0, &mut px);
-        assert_eq!(px, all[(5 * 256 + 17) * c..(5 * 256 + 18) * c].to_vec());
-    }
 }
 
 /// Output values are exemplar values (colours stay exact), and the bank round trip
