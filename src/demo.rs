@@ -23,11 +23,12 @@ use crate::error::{Error, Result};
 use crate::imperfect::{Imperfect, ImperfectConfig};
 use crate::io::{Format, ReadOptions, read_image_bytes, write_atomically, write_heights};
 use crate::models::milling::{MillingConfig, MillingSurface};
+use crate::models::rsgf::RsgfSurface;
 use crate::models::rugged::ModelConfig;
 use crate::render::{LayerOutputs, render_imperfect, render_region, render_to_file};
 use crate::shade::ShadeOptions;
 use crate::stats::{compare, height_stats, seam_score};
-use crate::stream::{BlendSurface, Region, RsgfSurface, ToroidalSurface};
+use crate::stream::{BlendSurface, Region, ToroidalSurface};
 
 /// The bundled exemplar: Bruker AFM height map `di-6` (512 × 512, heights in µm).
 const EXEMPLAR: &[u8] = include_bytes!("../tiles/di-6.npy");

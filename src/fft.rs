@@ -186,6 +186,13 @@ impl RealFft2 {
     }
 }
 
+/// Periodic Hann window value for sample i of n (the sample centres, so both ends are
+/// small and equal): the window of spectra (taper, PSD estimates).
+pub(crate) fn hann(i: usize, n: usize) -> f64 {
+    let t = (i as f64 + 0.5) / n as f64;
+    0.5 - 0.5 * (2.0 * std::f64::consts::PI * t).cos()
+}
+
 /// How many frequencies of the full spectrum column `kx` of a [`RealFft2`] half
 /// spectrum stands for: 1 for column 0 and, for an even `width`, column width/2 (their
 /// own mirrors), 2 for the others (themselves and their mirror images). Sums of power

@@ -11,19 +11,20 @@ use clap::{Args, Parser, Subcommand};
 use surftile::analysis::level::level_plane;
 use surftile::analysis::missing::fill_missing;
 use surftile::analysis::resample::DownsampleFilter;
-use surftile::analysis::rsgf::RsgfOptions;
+use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
 use surftile::demo::run_demo;
 use surftile::imperfect::{Imperfect, ImperfectConfig};
 use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
 use surftile::models::milling::{MillingConfig, MillingSurface};
+use surftile::models::rsgf::{Join, Metric};
+use surftile::models::synth::SynthParams;
 use surftile::render::{LayerOutputs, checked_size, render_imperfect, render_to_file};
 use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;
 use surftile::stats::compare;
 use surftile::stats::structure::structure;
-use surftile::stream::{Join, Metric, SynthParams};
 use surftile::stream::{Region, Surface};
 use surftile::{Error, Result};
 
@@ -238,7 +239,7 @@ enum Command {
         join: Join,
         /// RSGF: with cuts, the patches ramp over 2 × this many pixels around the cut
         /// (0: a hard cut); below the border.
-        #[arg(long, default_value_t = surftile::stream::rsgf::DEFAULT_FEATHER, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = surftile::models::rsgf::DEFAULT_FEATHER, allow_negative_numbers = true)]
         feather: usize,
         /// RSGF: stochastic mode, v1 = (1, 0) and v2 = (0, 1), no lattice estimation.
         #[arg(long)]

@@ -3,7 +3,7 @@
 //!
 //! Both the structure figures ([`crate::stats::structure`]: patch coherence,
 //! completeness, repetition, copies) and the synthesis bake
-//! ([`crate::analysis::synth`]: appearance vectors and k-coherence candidate sets,
+//! ([`crate::models::synth`]: appearance vectors and k-coherence candidate sets,
 //! Lefebvre & Hoppe 2005/2006) use them. A projection onto orthonormal principal
 //! directions never lengthens a difference (‖P(a − b)‖ ≤ ‖a − b‖), so a range search in
 //! the projected space returns every vector within that range in the full space, plus

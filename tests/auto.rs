@@ -2,8 +2,8 @@
 //! structured photos never do, a lattice goes to the roller or RSGF; each choice comes
 //! with a one-line reason naming its figures.
 
-use surftile::analysis::auto::{EDGE_RATIO, choose_method, edge_ratio};
 use surftile::bake::Baker;
+use surftile::bake::auto::{EDGE_RATIO, choose_method, edge_ratio};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
 use surftile::raster::Raster;

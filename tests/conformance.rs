@@ -19,13 +19,14 @@ use std::time::Instant;
 
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
-use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::Baker;
+use surftile::bake::rsgf::RsgfOptions;
 use surftile::bank::{Bank, Method};
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::KINDS;
 use surftile::models::milling::{MillingConfig, MillingSurface};
-use surftile::stream::{MAX_COORDINATE, Region, Surface, SynthParams, fill_parallel};
+use surftile::models::synth::SynthParams;
+use surftile::stream::{MAX_COORDINATE, Region, Surface, fill_parallel};
 
 /// Banks written once per test binary into a temporary folder, opened by path.
 fn bank_dir() -> &'static tempfile::TempDir {

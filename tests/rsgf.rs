@@ -6,14 +6,15 @@ mod common;
 
 use common::repo;
 use surftile::Raster;
-use surftile::analysis::rsgf::RsgfOptions;
 use surftile::bake::Baker;
+use surftile::bake::rsgf::RsgfOptions;
 use surftile::bank::Bank;
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
 use surftile::lattice::{Lattice, periodic_pattern};
+use surftile::models::rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface};
 use surftile::stats::{height_stats, seam_score, wasserstein1_standardised};
-use surftile::stream::{Join, Metric, Region, RsgfModel, RsgfParams, RsgfSurface, Surface};
+use surftile::stream::{Region, Surface};
 
 /// A near-regular `w × h × channels` exemplar on lattice (u, v): the shared periodic
 /// pattern, plus smooth noise of 0.35 its amplitude (the "irregularities"), plus, in
@@ -492,7 +493,7 @@ fn a_histogram_map_restores_small_exemplars() {
         let (ex, _) = baker.preprocess(&image, name).unwrap();
         let bank = baker.bake(&image, name, &mut |_| {}).unwrap();
         assert_eq!(
-            surftile::stream::rsgf::check_bank(&bank, "test")
+            surftile::models::rsgf::check_bank(&bank, "test")
                 .unwrap()
                 .histogram
                 .is_some(),
@@ -536,7 +537,7 @@ fn rsgf_banks_round_trip() {
         .build()
         .unwrap();
     let bank = baker.bake(&image, "x3p-2-crop", &mut |_| {}).unwrap();
-    let params = surftile::stream::rsgf::check_bank(&bank, "test").expect("rsgf section");
+    let params = surftile::models::rsgf::check_bank(&bank, "test").expect("rsgf section");
     let back = Bank::from_bytes(&bank.to_bytes().unwrap(), "round trip").unwrap();
     assert_eq!(back, bank);
     let surface = open(&back, 4).unwrap();

@@ -2,13 +2,14 @@
 //! split invariance near the origin and a billion pixels away, on 1 and 2 threads; the
 //! bank round trip; bad input refused with what was expected.
 
-use surftile::analysis::synth::synth_model;
 use surftile::bake::Baker;
 use surftile::bank::{Bank, Method};
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
+use surftile::models::synth::SynthParams;
+use surftile::models::synth::synth_model;
 use surftile::raster::Raster;
-use surftile::stream::{Region, Surface, SynthParams};
+use surftile::stream::{Region, Surface};
 
 fn mud() -> Raster {
     read_image(

@@ -1,6 +1,5 @@
 //! Offline analysis stages, one file per method. Everything here runs once, at bake time.
 
-pub mod auto;
 pub mod cut;
 pub mod gauss;
 pub mod heal;
@@ -13,8 +12,6 @@ pub mod quilt;
 pub mod resample;
 pub mod roller;
 pub mod rpn;
-pub mod rsgf;
 pub mod stitch;
-pub mod synth;
 pub mod taper;
 pub mod translation;

@@ -2,12 +2,7 @@
 
 use rustfft::num_complex::Complex64;
 
-/// Periodic Hann window value for sample i of n (the sample centres, so both ends are
-/// small and equal).
-pub(crate) fn hann(i: usize, n: usize) -> f64 {
-    let t = (i as f64 + 0.5) / n as f64;
-    0.5 - 0.5 * (2.0 * std::f64::consts::PI * t).cos()
-}
+pub(crate) use crate::fft::hann;
 
 /// A plane's mean, its sum of squared deviations, and its deviations times a separable
 /// Hann window (row-major, `width` wide), with the window's Welch gain: 1 over its rms.

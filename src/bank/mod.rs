@@ -211,9 +211,9 @@ pub enum Record {
         /// The configuration and adaptation.
         info: serde_json::Value,
     },
-    /// RSGF rule: the synthesis parameters and lattice (`stream::RsgfParams`).
+    /// RSGF rule: the synthesis parameters and lattice (`models::rsgf::RsgfParams`).
     Rsgf(serde_json::Value),
-    /// Synth rule: the synthesis parameters (`stream::synth::SynthParams`); its extra
+    /// Synth rule: the synthesis parameters (`models::synth::SynthParams`); its extra
     /// tables hold one equal block per synthesis level (`levels`).
     Synth(serde_json::Value),
 }

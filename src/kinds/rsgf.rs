@@ -4,8 +4,9 @@
 use super::{GpuFill, Kind};
 use crate::bank::{Bank, Rule};
 use crate::error::Result;
-use crate::stream::rsgf::check_bank;
-use crate::stream::{RsgfSurface, Surface};
+use crate::models::rsgf::RsgfSurface;
+use crate::models::rsgf::check_bank;
+use crate::stream::Surface;
 
 /// The RSGF rule's kind.
 pub struct Rsgf;
@@ -39,7 +40,7 @@ impl Kind for Rsgf {
             p.border_px,
             p.tolerance_px,
             p.metric,
-            crate::analysis::rsgf::join_text(&p),
+            crate::bake::rsgf::join_text(&p),
             if p.histogram.is_some() {
                 ", values mapped to the exemplar's histogram"
             } else {

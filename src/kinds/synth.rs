@@ -4,8 +4,8 @@
 use super::{GpuFill, Kind};
 use crate::bank::{Bank, Rule};
 use crate::error::Result;
+use crate::models::synth::{SynthSurface, check_bank};
 use crate::stream::Surface;
-use crate::stream::synth::{SynthSurface, check_bank};
 
 /// The synth rule's kind.
 pub struct Synth;

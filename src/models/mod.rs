@@ -2,7 +2,9 @@
 
 pub mod fractal;
 pub mod milling;
+pub mod rsgf;
 pub mod rugged;
+pub mod synth;
 pub mod voronoi;
 
 use crate::error::Error;

@@ -136,8 +136,7 @@ pub fn height_stats(r: &Raster) -> HeightStats {
 pub fn windowed_variance_ratio(r: &Raster) -> f64 {
     let (w, h) = (r.width, r.height);
     let (mean, sd) = moments(&r.data);
-    let hann =
-        |n: usize| -> Vec<f64> { (0..n).map(|i| crate::analysis::taper::hann(i, n)).collect() };
+    let hann = |n: usize| -> Vec<f64> { (0..n).map(|i| crate::fft::hann(i, n)).collect() };
     let (wx, wy) = (hann(w), hann(h));
     let mean_sq = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>() / v.len().max(1) as f64;
     let norm = mean_sq(&wx) * mean_sq(&wy);
@@ -357,7 +356,7 @@ pub fn wasserstein1_sorted(a: &[f64], b: &[f64]) -> f64 {
 /// power per integer radius 0..=n/2 and the number of frequencies per radius in one
 /// window.
 fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>) {
-    let hann: Vec<f64> = (0..n).map(|i| crate::analysis::taper::hann(i, n)).collect();
+    let hann: Vec<f64> = (0..n).map(|i| crate::fft::hann(i, n)).collect();
     // Half spectra (real FFTs): each column that stands for its mirror image too counts
     // twice. Each frequency's radius bin and weight, once for every window.
     let mut plan = RealFft2::new(n, n);
@@ -794,7 +793,7 @@ mod tests {
         });
         for n in [24usize, 21] {
             let (power, count) = radial_psd(&r, n, 64);
-            let hann: Vec<f64> = (0..n).map(|i| crate::analysis::taper::hann(i, n)).collect();
+            let hann: Vec<f64> = (0..n).map(|i| crate::fft::hann(i, n)).collect();
             let mut plan = Fft2::new(n, n);
             let bins = n / 2 + 1;
             let (mut p_full, mut c_full) = (vec![0.0; bins], vec![0usize; bins]);

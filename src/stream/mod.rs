@@ -10,16 +10,12 @@
 
 pub(crate) mod blend;
 pub mod pages;
-pub mod rsgf;
-pub mod synth;
 pub(crate) mod toroidal;
 
 use std::ops::Range;
 
 pub use blend::BlendSurface;
 pub use pages::{Page, PageKey, PageStats, PageStreamer, View};
-pub use rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface};
-pub use synth::{SynthParams, SynthSurface};
 pub use toroidal::ToroidalSurface;
 
 use crate::error::{Error, Result, short};

@@ -41,13 +41,13 @@
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
-use super::gauss::quantile;
-use super::periodicity::{Detection, detect};
-use super::rpn::random_phase_noise;
+use crate::analysis::gauss::quantile;
+use crate::analysis::periodicity::{Detection, detect};
+use crate::analysis::rpn::random_phase_noise;
 use crate::bank::Method;
+use crate::models::rsgf::MAX_EXEMPLAR_PIXELS;
+use crate::models::rsgf::RsgfParams;
 use crate::raster::Raster;
-use crate::stream::RsgfParams;
-use crate::stream::rsgf::MAX_EXEMPLAR_PIXELS;
 
 /// Normalised autocorrelation at both lattice vectors from which the roller, rather
 /// than RSGF, takes a lattice.

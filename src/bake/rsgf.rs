@@ -1,7 +1,7 @@
 //! Baking an RSGF bank (seed 002): the lattice (estimated by §3.3, given, or the
 //! stochastic unit lattice), the synthesis parameters checked against the exemplar, and
 //! the exemplar itself with its mip chain. The synthesis runs lazily at sampling time
-//! ([`crate::stream::RsgfSurface`]).
+//! ([`crate::models::rsgf::RsgfSurface`]).
 
 use crate::analysis::ncc::autocorrelation;
 use crate::analysis::translation::{
@@ -9,8 +9,9 @@ use crate::analysis::translation::{
 };
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::Result;
+use crate::models::rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface};
 use crate::raster::Raster;
-use crate::stream::{Join, Metric, Region, RsgfModel, RsgfParams, RsgfSurface, Surface};
+use crate::stream::{Region, Surface};
 
 /// What the user asked for; the lattice is resolved by `bake`.
 #[derive(Clone, Debug, PartialEq)]

@@ -32,14 +32,18 @@
 //! so heights stay in their unit and colours stay exact. Zoomed-out regions (step ≥ 2)
 //! stop at a coarser level and read its Gaussian-stack values.
 
+mod build;
+
+pub use build::synth_model;
+
 use std::ops::Range;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Region, Surface, check_buffer, default_threads, floor_split, in_range};
 use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
 use crate::hash::hash_cell;
+use crate::stream::{Region, Surface, check_buffer, default_threads, floor_split, in_range};
 
 /// Synthesis parameters (stored in the bank header).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -873,7 +877,7 @@ pub fn check_bank(bank: &Bank, what: &str) -> Result<SynthParams> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::synth::synth_model;
+    use crate::models::synth::synth_model;
     use crate::raster::Raster;
 
     /// A smooth two-tone exemplar with features at several scales.

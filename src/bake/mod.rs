@@ -11,6 +11,10 @@
 //! Validation happens in [`BakerBuilder::build`], so [`Baker::bake`] fails only on the
 //! exemplar itself (missing points, too small).
 
+pub mod auto;
+pub mod rsgf;
+pub mod synth;
+
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -22,8 +26,8 @@ use crate::analysis::periodicity::{Detection, detect};
 use crate::analysis::resample::{DownsampleFilter, downsample};
 use crate::analysis::roller::{mip_down, required_size, roller_tiles};
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
-use crate::analysis::rsgf::RsgfOptions;
 use crate::analysis::taper::{hann_taper, hann_taper_main_lobe};
+use crate::bake::rsgf::RsgfOptions;
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::{Error, Result};
 use crate::io::ImageFile;
@@ -128,7 +132,7 @@ pub struct Baker {
     overlap: Option<usize>,
     rsgf: RsgfOptions,
     colours: usize,
-    synth: crate::stream::SynthParams,
+    synth: crate::models::synth::SynthParams,
 }
 
 /// Builder for [`Baker`]; every setter documents its default.
@@ -224,8 +228,8 @@ impl BakerBuilder {
         self
     }
     /// Synth: levels (0 = the default for the exemplar), k, passes, jitter and
-    /// appearance dimensions. Default: [`crate::stream::SynthParams::default`].
-    pub fn synth(mut self, params: crate::stream::SynthParams) -> Self {
+    /// appearance dimensions. Default: [`crate::models::synth::SynthParams::default`].
+    pub fn synth(mut self, params: crate::models::synth::SynthParams) -> Self {
         self.0.synth = params;
         self
     }
@@ -235,7 +239,7 @@ impl BakerBuilder {
         if b.synth.levels != 0 {
             b.synth.validate()?;
         } else {
-            crate::stream::SynthParams {
+            crate::models::synth::SynthParams {
                 levels: 1,
                 ..b.synth.clone()
             }
@@ -344,7 +348,7 @@ impl Baker {
             overlap: None,
             rsgf: RsgfOptions::default(),
             colours: 2,
-            synth: crate::stream::SynthParams::default(),
+            synth: crate::models::synth::SynthParams::default(),
         })
     }
 
@@ -418,14 +422,14 @@ impl Baker {
     }
 
     /// The method [`Method::Auto`] picks for `image` after this baker's preprocessing,
-    /// with its one-line reason ([`crate::analysis::auto`]).
+    /// with its one-line reason ([`crate::bake::auto`]).
     pub fn choose_method(
         &self,
         image: &ImageFile,
         source: &str,
-    ) -> Result<crate::analysis::auto::AutoChoice> {
+    ) -> Result<crate::bake::auto::AutoChoice> {
         let (ex, _) = self.preprocess(image, source)?;
-        Ok(crate::analysis::auto::choose_method(&ex, self.seed))
+        Ok(crate::bake::auto::choose_method(&ex, self.seed))
     }
 
     /// Bakes a blend bank from `image`. `source` names it in errors and in the bank;
@@ -448,7 +452,7 @@ impl Baker {
             }
             Method::Rsgf => {
                 let (ex, base) = self.preprocess_with_header(image, source)?;
-                return crate::analysis::rsgf::bake(
+                return crate::bake::rsgf::bake(
                     &ex,
                     &self.rsgf,
                     self.lattice,
@@ -459,7 +463,7 @@ impl Baker {
             }
             Method::Synth => {
                 let (ex, base) = self.preprocess_with_header(image, source)?;
-                return crate::analysis::synth::bake_synth(&ex, &self.synth, base, progress);
+                return crate::bake::synth::bake_synth(&ex, &self.synth, base, progress);
             }
             Method::Auto => {
                 let choice = self.choose_method(image, source)?;

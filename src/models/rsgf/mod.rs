@@ -28,10 +28,10 @@ use serde::{Deserialize, Serialize};
 use model::Edge;
 pub use model::{MAX_EXEMPLAR_PIXELS, RsgfModel};
 
-use super::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
 use crate::raster::Raster;
+use crate::stream::{Region, Surface, fill_rows_by_sample, floor_split, in_range, mip_level};
 
 /// How a gap's border is matched (§4.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -83,7 +83,7 @@ pub struct RsgfParams {
     pub feather_px: usize,
     /// Per channel, a monotone map applied to every output value, as knots (from, to),
     /// `from` increasing: the bake's measure of the histogram a synthesis gives, mapped
-    /// back onto the exemplar's (see `analysis::rsgf::histogram_map`). None: values are
+    /// back onto the exemplar's (see `bake::rsgf::histogram_map`). None: values are
     /// the exemplar's (or blends of them) as they are.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub histogram: Option<Vec<Vec<[f32; 2]>>>,
@@ -570,13 +570,13 @@ impl Surface for RsgfSurface {
     }
 
     fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
-        let threads = super::default_threads();
+        let threads = crate::stream::default_threads();
         let Some((x0, y0)) = Self::pixel_aligned(region) else {
-            return super::fill_parallel(self, region, out, threads);
+            return crate::stream::fill_parallel(self, region, out, threads);
         };
         region.validate()?;
         let c = self.model.c;
-        super::check_buffer(region, c, out)?;
+        crate::stream::check_buffer(region, c, out)?;
         let m = &self.model;
         let xr = self.block_range_x(x0, x0 + region.width as i64 - 1);
         let yr = m.block_range(y0, y0 + region.height as i64 - 1);
@@ -589,7 +589,7 @@ impl Surface for RsgfSurface {
         let blocks = self.picks(xr, yr, threads);
         let cuts = self.cuts(&blocks, threads);
         // Compose in bands of rows, on all threads.
-        super::for_bands(region, c, out, threads, 16, |rows, chunk| {
+        crate::stream::for_bands(region, c, out, threads, 16, |rows, chunk| {
             self.compose_rows(&blocks, &cuts, (x0, y0), region.width, rows, chunk)
         })
     }
