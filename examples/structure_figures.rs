@@ -17,15 +17,16 @@ use std::time::Instant;
 
 use clap::Parser;
 use surftile::analysis::level::level_plane;
-use surftile::analysis::rsgf::RsgfOptions;
+use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
+use surftile::models::synth::SynthParams;
 use surftile::raster::Raster;
 use surftile::stats::structure::structure;
 use surftile::stats::{psd_error, wasserstein1_standardised};
-use surftile::stream::{Region, Surface, SynthParams};
+use surftile::stream::{Region, Surface};
 use texture_synthesis as ts;
 
 #[derive(Parser)]
