@@ -111,9 +111,13 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         "rsgf" => Method::Rsgf,
         other => return Err(format!("--method {other}: expected synth or rsgf").into()),
     };
-    let baker = Baker::builder()
+    let builder = Baker::builder()
         .method(method)
-        .rsgf(RsgfOptions {
+        .leveling(leveling)
+        .seed(args.seed);
+    // Each method takes only its own options.
+    let builder = if method == Method::Rsgf {
+        builder.rsgf(RsgfOptions {
             stochastic: true,
             block_px: if args.block > 0 {
                 args.block
@@ -128,9 +132,8 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             feather_px: usize::try_from(args.feather).unwrap_or(RsgfOptions::default().feather_px),
             ..RsgfOptions::default()
         })
-        .leveling(leveling)
-        .seed(args.seed)
-        .synth(SynthParams {
+    } else {
+        builder.synth(SynthParams {
             jitter: args.jitter,
             k: args.k,
             passes: args.passes,
@@ -140,7 +143,8 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             jitter_levels: args.jitter_levels,
             ..SynthParams::default()
         })
-        .build()?;
+    };
+    let baker = builder.build()?;
     let (mut ex, _) = baker.preprocess(&image, &name)?;
     if height_map {
         level_plane(&mut ex);

@@ -52,7 +52,7 @@ pub enum Error {
     },
     /// The exemplar has undefined (NaN) points and filling was not requested.
     #[error(
-        "{what}: {count} of {total} height points are missing (NaN); pass --fill-missing to fill them smoothly before analysis"
+        "{what}: {count} of {total} height points are missing (NaN); pass `fill_missing` to fill them smoothly before analysis"
     )]
     MissingData {
         /// The file concerned.

@@ -59,6 +59,7 @@ pub mod kinds;
 pub mod lattice;
 pub mod models;
 pub mod nn;
+pub mod prep;
 pub mod raster;
 pub mod render;
 pub mod sandblast;

@@ -8,8 +8,6 @@ use std::time::Instant;
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 use clap::{Args, Parser, Subcommand};
 
-use surftile::analysis::level::level_plane;
-use surftile::analysis::missing::fill_missing;
 use surftile::analysis::resample::DownsampleFilter;
 use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
@@ -23,8 +21,6 @@ use surftile::models::synth::SynthParams;
 use surftile::render::{LayerOutputs, checked_size, render_imperfect, render_to_file};
 use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;
-use surftile::stats::compare;
-use surftile::stats::structure::structure;
 use surftile::stream::{Region, Surface};
 use surftile::{Error, Result};
 
@@ -576,10 +572,54 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", cli_words(&e.to_string()));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The library's parameter names, as its messages quote them, and this CLI's flags.
+const FLAGS: [(&str, &str); 30] = [
+    ("fill_missing", "--fill-missing"),
+    ("stochastic", "--stochastic"),
+    ("lattice", "--lattice"),
+    ("tiles", "--tiles"),
+    ("tile", "--tile"),
+    ("overlap", "--overlap"),
+    ("colours", "--colours"),
+    ("patch", "--patch"),
+    ("exemplar_spacing", "--exemplar-spacing"),
+    ("shade", "--shade"),
+    ("imperfect", "--imperfect"),
+    ("headless", "--headless"),
+    ("cell", "--cell"),
+    ("method", "--method"),
+    ("no_structure", "--no-structure"),
+    ("block", "--block"),
+    ("border", "--border"),
+    ("tolerance", "--tolerance"),
+    ("metric", "--metric"),
+    ("join", "--join"),
+    ("feather", "--feather"),
+    ("match_histogram", "--match-histogram"),
+    ("levels", "--levels"),
+    ("k", "--k"),
+    ("passes", "--passes"),
+    ("fine_passes", "--fine-passes"),
+    ("jitter", "--jitter"),
+    ("appearance_dims", "--appearance-dims"),
+    ("coherence", "--coherence"),
+    ("jitter_levels", "--jitter-levels"),
+];
+
+/// A library message in the CLI's words: each quoted parameter (`` `name` ``) becomes
+/// its flag.
+fn cli_words(text: &str) -> String {
+    let mut out = text.to_string();
+    for (name, flag) in FLAGS {
+        out = out.replace(&format!("`{name}`"), flag);
+    }
+    out
 }
 
 /// clap's error as one line, with the missing arguments or the accepted values when it
@@ -657,9 +697,6 @@ fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
         raw_shape: raw_shape.as_deref().map(parse_shape).transpose()?,
     })
 }
-
-/// Smallest side `surftile stats` accepts, in pixels: the PSD error's smallest window.
-const MIN_STATS_SIDE: usize = 8;
 
 /// A coordinate from the command line, inside the surface's range.
 fn coordinate(name: &str, v: f64) -> Result<f64> {
@@ -757,40 +794,22 @@ fn bake_milling(config: &Path, spacing: Option<f64>, seed: u64, out: &Path) -> R
     Ok(())
 }
 
-/// `surftile lattice`: the autocorrelation, the best pair, the optional plot.
+/// `surftile lattice`: the two translation vectors of a near-regular image.
 fn lattice_command(
     image: &Path,
     json: bool,
     plot: Option<&Path>,
     options: &ReadOptions,
 ) -> Result<()> {
-    use surftile::analysis::{ncc, translation};
+    use surftile::analysis::translation::{ALPHA, estimate_lattice, lattice_plot};
     let raster = read_image(image, options)?.raster;
-    let what = image.display().to_string();
-    if raster.data.iter().any(|v| v.is_nan()) {
-        return Err(Error::MissingData {
-            what,
-            count: raster.count_nan(),
-            total: raster.data.len(),
-        });
-    }
-    let map = ncc::autocorrelation(&raster)?;
-    let best = translation::best_pair(&map);
-    let t = match best {
-        Some(t) if t.mean_gamma >= translation::MIN_MEAN_GAMMA => t,
-        other => {
-            return Err(translation::no_lattice(
-                &what,
-                other,
-                "to synthesise it anyway, bake it with --method rsgf and --stochastic, or with --lattice \"ux,uy;vx,vy\"",
-            ));
-        }
-    };
+    let (map, t, notes) = estimate_lattice(&raster, &image.display().to_string())?;
     if let Some(out) = plot {
-        write_lattice_plot(out, &map, t)?;
+        let (w, h, px) = lattice_plot(&map, &t);
+        surftile::io::write_png8(out, w, h, 3, &px)?;
     }
-    for note in translation::ridge_notes(&map, &t) {
-        eprintln!("{note}");
+    for note in notes {
+        eprintln!("{}", cli_words(&note));
     }
     if json {
         println!(
@@ -800,69 +819,10 @@ fn lattice_command(
     } else {
         println!("v1          ({}, {}) px", t.v1.0, t.v1.1);
         println!("v2          ({}, {}) px", t.v2.0, t.v2.1);
-        println!(
-            "goodness    {:.4} (eq. 9, α = {})",
-            t.goodness,
-            translation::ALPHA
-        );
+        println!("goodness    {:.4} (eq. 9, α = {ALPHA})", t.goodness);
         println!("mean γ      {:.4} over the lattice multiples", t.mean_gamma);
     }
     Ok(())
-}
-
-/// The autocorrelation as an RGB PNG, centre = zero shift, lattice points in red.
-fn write_lattice_plot(
-    out: &Path,
-    map: &surftile::analysis::ncc::NccMap,
-    t: surftile::analysis::translation::Translation,
-) -> Result<()> {
-    let (w, h) = (map.width, map.height);
-    let mut px: Vec<u8> = map
-        .gamma
-        .iter()
-        .flat_map(|g| {
-            let v = ((g + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8;
-            [v, v, v]
-        })
-        .collect();
-    let (x0, _) = map.dx_range();
-    let (y0, _) = map.dy_range();
-    let mut mark = |dx: i64, dy: i64, colour: [u8; 3]| {
-        for (ox, oy) in [
-            (0, 0),
-            (-1, 0),
-            (1, 0),
-            (0, -1),
-            (0, 1),
-            (-2, 0),
-            (2, 0),
-            (0, -2),
-            (0, 2),
-        ] {
-            let (i, j) = (dx - x0 + ox, dy - y0 + oy);
-            if i >= 0 && j >= 0 && (i as usize) < w && (j as usize) < h {
-                let k = (j as usize * w + i as usize) * 3;
-                px[k..k + 3].copy_from_slice(&colour);
-            }
-        }
-    };
-    {
-        // |a| = |m × v₂|/|det| and |b| = |v₁ × m|/|det| over the map's shifts m.
-        let det = (t.v1.0 * t.v2.1 - t.v1.1 * t.v2.0).abs().max(1);
-        let (mx, my) = (w as i64, h as i64);
-        let ra = (mx * t.v2.1.abs() + my * t.v2.0.abs()) / det + 1;
-        let rb = (mx * t.v1.1.abs() + my * t.v1.0.abs()) / det + 1;
-        for a in -ra..=ra {
-            for b in -rb..=rb {
-                let (dx, dy) = (a * t.v1.0 + b * t.v2.0, a * t.v1.1 + b * t.v2.1);
-                if dx >= x0 && dx <= -x0 + w as i64 && dy >= y0 && dy <= -y0 + h as i64 {
-                    mark(dx, dy, [230, 30, 30]);
-                }
-            }
-        }
-    }
-    mark(0, 0, [30, 200, 30]);
-    surftile::io::write_png8(out, w, h, 3, &px)
 }
 
 fn run(command: Command) -> Result<()> {
@@ -922,35 +882,7 @@ fn run(command: Command) -> Result<()> {
             if let Some(n) = tiles {
                 builder = builder.tiles(n);
             }
-            if method != Method::Roller && (tile.is_some() || tiles.is_some()) {
-                return Err(Error::param(
-                    "method",
-                    method,
-                    "roller when --tiles or --tile is given",
-                ));
-            }
-            if !matches!(method, Method::Roller | Method::Quilt) && overlap.is_some() {
-                return Err(Error::param(
-                    "method",
-                    method,
-                    "roller or quilt when --overlap is given",
-                ));
-            }
-            if method != Method::Quilt && colours != 2 {
-                return Err(Error::param(
-                    "method",
-                    method,
-                    "quilt when --colours is given",
-                ));
-            }
             builder = builder.colours(colours);
-            if !matches!(method, Method::Roller | Method::Rsgf) && lattice.is_some() {
-                return Err(Error::param(
-                    "method",
-                    method,
-                    "roller or rsgf when --lattice is given",
-                ));
-            }
             let rsgf = RsgfOptions {
                 block_px: block,
                 border_px: border,
@@ -961,13 +893,6 @@ fn run(command: Command) -> Result<()> {
                 stochastic,
                 histogram: match_histogram,
             };
-            if method != Method::Rsgf && rsgf != RsgfOptions::default() {
-                return Err(Error::param(
-                    "method",
-                    method,
-                    "rsgf when --block, --border, --tolerance, --metric, --join, --feather, --match-histogram or --stochastic is given",
-                ));
-            }
             builder = builder.rsgf(rsgf);
             let synth = SynthParams {
                 levels: levels.unwrap_or(0),
@@ -979,19 +904,6 @@ fn run(command: Command) -> Result<()> {
                 coherence,
                 jitter_levels,
             };
-            if method != Method::Synth
-                && synth
-                    != (SynthParams {
-                        levels: 0,
-                        ..SynthParams::default()
-                    })
-            {
-                return Err(Error::param(
-                    "method",
-                    method,
-                    "synth when --levels, --k, --passes, --fine-passes, --jitter, --appearance-dims, --coherence or --jitter-levels is given",
-                ));
-            }
             if levels == Some(0) {
                 return Err(Error::param("levels", 0, "1 to 12 synthesis levels"));
             }
@@ -1021,7 +933,9 @@ fn run(command: Command) -> Result<()> {
             let start = Instant::now();
             let image = read_image(&exemplar, &raw_options(&raw_shape)?)?;
             let source = exemplar.display().to_string();
-            let bank = baker.bake(&image, &source, &mut |line| eprintln!("bake: {line}"))?;
+            let bank = baker.bake(&image, &source, &mut |line| {
+                eprintln!("bake: {}", cli_words(line))
+            })?;
             bank.write(&out)?;
             eprintln!(
                 "bake: wrote {} in {:.2} s",
@@ -1327,81 +1241,20 @@ fn run(command: Command) -> Result<()> {
             no_structure,
         } => {
             let options = raw_options(&raw_shape)?;
-            let load = |path: &Path| -> Result<surftile::Raster> {
-                let mut r = read_image(path, &options)?.raster;
-                let what = path.display().to_string();
-                let missing = r.count_nan();
-                if missing > 0 {
-                    if !fill {
-                        return Err(Error::MissingData {
-                            what,
-                            count: missing,
-                            total: r.data.len(),
-                        });
-                    }
-                    fill_missing(&mut r, &what)?;
-                }
-                if r.data.iter().any(|v| v.is_infinite()) {
-                    return Err(Error::decode(what, "the map holds infinite values"));
-                }
-                if level != Leveling::None && r.channels == 1 {
-                    level_plane(&mut r);
-                }
-                Ok(r)
-            };
-            if let Some(0) = cell {
-                return Err(Error::param("cell", 0, "a cell size of at least 1 pixel"));
-            }
-            let (full_a, full_b) = (load(&a)?, load(&b)?);
-            // The height figures read channel 0, levelled as asked whatever the channel
-            // count; the patch figures read colour as it is.
-            let height_channel = |full: &surftile::Raster| {
-                let mut r = full.channel(0);
-                if level != Leveling::None && full.channels > 1 {
-                    level_plane(&mut r);
-                }
-                r
-            };
-            let (ra, rb) = (height_channel(&full_a), height_channel(&full_b));
-            for (path, r) in [(&a, &ra), (&b, &rb)] {
-                if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
-                    return Err(Error::TooSmall {
-                        what: path.display().to_string(),
-                        message: format!(
-                            "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE} (the PSD error's smallest window)",
-                            r.width, r.height
-                        ),
-                    });
-                }
-            }
-            if ra.data.iter().all(|&v| v == ra.data[0]) {
-                return Err(Error::Analysis {
-                    what: a.display().to_string(),
-                    message: format!(
-                        "A is flat (every height {}{}): W1 and the PSD error measure B against A's spread and spectrum, so A must vary",
-                        ra.data[0],
-                        if level == Leveling::None {
-                            ""
-                        } else {
-                            " after levelling"
-                        }
-                    ),
-                });
-            }
-            let mut figures = compare(&ra, &rb, cell);
-            if !no_structure {
-                if full_a.channels != full_b.channels {
-                    return Err(Error::param(
-                        "B's channels",
-                        full_b.channels,
-                        format!(
-                            "{} like A, for the patch figures (or pass --no-structure)",
-                            full_a.channels
-                        ),
-                    ));
-                }
-                figures.structure = Some(structure(&full_a, &full_b, cell));
-            }
+            let (ra, rb) = (
+                read_image(&a, &options)?.raster,
+                read_image(&b, &options)?.raster,
+            );
+            let figures = surftile::stats::compare_maps(
+                (&ra, &a.display().to_string()),
+                (&rb, &b.display().to_string()),
+                &surftile::stats::CompareOptions {
+                    cell,
+                    leveling: level,
+                    fill_missing: fill,
+                    structure: !no_structure,
+                },
+            )?;
             println!(
                 "{}",
                 serde_json::to_string_pretty(&figures)

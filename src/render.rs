@@ -90,7 +90,7 @@ pub fn render_to_file(
             return Err(Error::param(
                 "out",
                 out.display(),
-                "a .png file with --shade (the shading is an 8-bit image)",
+                "a .png file with `shade` (the shading is an 8-bit image)",
             ));
         }
         let options = ShadeOptions {
@@ -186,7 +186,7 @@ pub fn render_imperfect<S: Surface>(
             return Err(Error::param(
                 "out",
                 out.display(),
-                "a .png file with --shade (the shading is an 8-bit image)",
+                "a .png file with `shade` (the shading is an 8-bit image)",
             ));
         }
     }

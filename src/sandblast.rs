@@ -246,7 +246,7 @@ impl Sandblast {
                     "spacing",
                     t,
                     format!(
-                        "a known exemplar spacing to down-sample from: {source} does not record one; pass --exemplar-spacing UM"
+                        "a known exemplar spacing to down-sample from: {source} does not record one; pass `exemplar_spacing` UM"
                     ),
                 ));
             }

@@ -60,7 +60,7 @@ fn structured_photos_never_pick_rpn() {
         let (method, reason, _) = choice(rel);
         assert_ne!(method, Method::Rpn, "{rel}: {reason}");
         assert!(
-            method == Method::Rsgf && reason.contains("rsgf --stochastic"),
+            method == Method::Rsgf && reason.contains("rsgf `stochastic`"),
             "{rel}: {reason}"
         );
     }

@@ -638,7 +638,7 @@ fn bad_rsgf_input_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("no lattice") && e.contains("--stochastic") && e.contains("--lattice"),
+        e.contains("no lattice") && e.contains("`stochastic`") && e.contains("`lattice`"),
         "{e}"
     );
     let stochastic = Baker::builder()

@@ -316,7 +316,7 @@ pub fn wang_tiles(
         return Err(Error::TooSmall {
             what: source.to_string(),
             message: format!(
-                "{}×{} pixels; Wang tiles of {t} px need an exemplar of at least {need}×{need} (the tile plus two {e} px strip ends): pass a smaller --patch",
+                "{}×{} pixels; Wang tiles of {t} px need an exemplar of at least {need}×{need} (the tile plus two {e} px strip ends): pass a smaller `patch`",
                 ex.width, ex.height
             ),
         });

@@ -368,7 +368,7 @@ fn origin_range(
         return Err(Error::TooSmall {
             what: "exemplar".into(),
             message: format!(
-                "{what} needs {}×{} pixels; the exemplar has {w}×{h} (give a smaller --tile or --lattice, or fewer --tiles)",
+                "{what} needs {}×{} pixels; the exemplar has {w}×{h} (give a smaller `tile` or `lattice`, or fewer `tiles`)",
                 ext.1 - ext.0 + 1,
                 ext.3 - ext.2 + 1
             ),
@@ -558,7 +558,7 @@ pub fn roller_tiles(
             return Err(Error::TooSmall {
                 what: "exemplar".into(),
                 message: format!(
-                    "{n_tiles} tiles need {n_tiles} rhomboids at least {:.0} px apart; the exemplar holds {} (ask for fewer --tiles or a smaller --tile)",
+                    "{n_tiles} tiles need {n_tiles} rhomboids at least {:.0} px apart; the exemplar holds {} (ask for fewer `tiles` or a smaller `tile`)",
                     0.75 * min_sep,
                     origins.len()
                 ),

@@ -77,7 +77,7 @@ pub fn ridge_notes(map: &NccMap, t: &Translation) -> Vec<String> {
             let (dip, at) = (dip_before(map, v), map.at(v.0, v.1));
             (dip < RIDGE_DIP).then(|| {
                 format!(
-                    "note: the autocorrelation does not dip on the way to {name} = ({}, {}) (γ {:.3} at least, {at:.3} at {name}): a ridge, as of stripes or mortar lines, along which any step repeats about as well, so {name}'s length is not a measured repetition; give the lattice with --lattice \"ux,uy;vx,vy\" if it is wrong",
+                    "note: the autocorrelation does not dip on the way to {name} = ({}, {}) (γ {:.3} at least, {at:.3} at {name}): a ridge, as of stripes or mortar lines, along which any step repeats about as well, so {name}'s length is not a measured repetition; give the lattice with `lattice` \"ux,uy;vx,vy\" if it is wrong",
                     v.0,
                     v.1,
                     at - dip
@@ -233,7 +233,7 @@ pub fn best_pair(map: &NccMap) -> Option<Translation> {
 }
 
 /// What `surftile bake --method rsgf` can do for an exemplar without a lattice.
-pub const BAKE_WITHOUT_LATTICE: &str = "for a stochastic texture pass --stochastic, or give the vectors with --lattice \"ux,uy;vx,vy\"";
+pub const BAKE_WITHOUT_LATTICE: &str = "for a stochastic texture pass `stochastic`, or give the vectors with `lattice` \"ux,uy;vx,vy\"";
 
 /// The error for an exemplar `what` without a detectable lattice: the figure that
 /// decided it, and `advice`, what to do instead (e.g. [`BAKE_WITHOUT_LATTICE`]).
@@ -251,6 +251,81 @@ pub fn no_lattice(what: &str, best: Option<Translation>, advice: &str) -> crate:
 /// without a detectable lattice.
 pub fn estimate(image: &Raster) -> Result<Option<Translation>> {
     Ok(from_autocorrelation(&autocorrelation(image)?))
+}
+
+/// Advice for `surftile lattice` on a texture without a lattice.
+pub const SYNTHESISE_WITHOUT_LATTICE: &str = "to synthesise it anyway, bake it with `method` rsgf and `stochastic`, or with `lattice` \"ux,uy;vx,vy\"";
+
+/// The lattice of a near-regular image `what` (missing points refused): its
+/// autocorrelation map, the best translation pair, and notes on ridges along which the
+/// pair's lengths are not measured repetitions. A texture without a lattice is refused
+/// with [`SYNTHESISE_WITHOUT_LATTICE`].
+pub fn estimate_lattice(image: &Raster, what: &str) -> Result<(NccMap, Translation, Vec<String>)> {
+    if image.data.iter().any(|v| v.is_nan()) {
+        return Err(crate::error::Error::MissingData {
+            what: what.to_string(),
+            count: image.count_nan(),
+            total: image.data.len(),
+        });
+    }
+    let map = autocorrelation(image)?;
+    let t = match best_pair(&map) {
+        Some(t) if t.mean_gamma >= MIN_MEAN_GAMMA => t,
+        other => return Err(no_lattice(what, other, SYNTHESISE_WITHOUT_LATTICE)),
+    };
+    let notes = ridge_notes(&map, &t);
+    Ok((map, t, notes))
+}
+
+/// The autocorrelation `map` as an RGB image (`width × height × 3` bytes), γ from −1
+/// (black) to 1 (white), zero shift at the centre in green, the multiples of `t`'s
+/// vectors in red.
+pub fn lattice_plot(map: &NccMap, t: &Translation) -> (usize, usize, Vec<u8>) {
+    let (w, h) = (map.width, map.height);
+    let mut px: Vec<u8> = map
+        .gamma
+        .iter()
+        .flat_map(|g| {
+            let v = ((g + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8;
+            [v, v, v]
+        })
+        .collect();
+    let (x0, _) = map.dx_range();
+    let (y0, _) = map.dy_range();
+    let mut mark = |dx: i64, dy: i64, colour: [u8; 3]| {
+        for (ox, oy) in [
+            (0, 0),
+            (-1, 0),
+            (1, 0),
+            (0, -1),
+            (0, 1),
+            (-2, 0),
+            (2, 0),
+            (0, -2),
+            (0, 2),
+        ] {
+            let (i, j) = (dx - x0 + ox, dy - y0 + oy);
+            if i >= 0 && j >= 0 && (i as usize) < w && (j as usize) < h {
+                let k = (j as usize * w + i as usize) * 3;
+                px[k..k + 3].copy_from_slice(&colour);
+            }
+        }
+    };
+    // |a| = |m × v₂|/|det| and |b| = |v₁ × m|/|det| over the map's shifts m.
+    let det = (t.v1.0 * t.v2.1 - t.v1.1 * t.v2.0).abs().max(1);
+    let (mx, my) = (w as i64, h as i64);
+    let ra = (mx * t.v2.1.abs() + my * t.v2.0.abs()) / det + 1;
+    let rb = (mx * t.v1.1.abs() + my * t.v1.0.abs()) / det + 1;
+    for a in -ra..=ra {
+        for b in -rb..=rb {
+            let (dx, dy) = (a * t.v1.0 + b * t.v2.0, a * t.v1.1 + b * t.v2.1);
+            if dx >= x0 && dx <= -x0 + w as i64 && dy >= y0 && dy <= -y0 + h as i64 {
+                mark(dx, dy, [230, 30, 30]);
+            }
+        }
+    }
+    mark(0, 0, [30, 200, 30]);
+    (w, h, px)
 }
 
 #[cfg(test)]

@@ -121,7 +121,7 @@ pub fn choose_method(ex: &Raster, seed: u64) -> AutoChoice {
                         method: Method::Rsgf,
                         stochastic: true,
                         reason: format!(
-                            "{objects}: rsgf --stochastic (patches copied whole, joined along minimum-error cuts)"
+                            "{objects}: rsgf `stochastic` (patches copied whole, joined along minimum-error cuts)"
                         ),
                     }
                 } else {

@@ -19,11 +19,8 @@ use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 use crate::analysis::gauss::{gaussianize, inverse_lut, lut_eval, quantile};
-use crate::analysis::level::level_plane;
-use crate::analysis::missing::fill_missing;
 use crate::analysis::periodic::periodic_smooth;
 use crate::analysis::periodicity::{Detection, detect};
-use crate::analysis::resample::{DownsampleFilter, downsample};
 use crate::analysis::roller::{mip_down, required_size, roller_tiles};
 use crate::analysis::rpn::{asymptotic_spot_noise, random_phase_noise};
 use crate::analysis::taper::{hann_taper, hann_taper_main_lobe};
@@ -32,6 +29,7 @@ use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::{Error, Result};
 use crate::io::ImageFile;
 use crate::lattice::Lattice;
+use crate::prep::resample::DownsampleFilter;
 use crate::raster::Raster;
 
 /// Smallest exemplar side accepted, in pixels (after down-sampling).
@@ -45,17 +43,7 @@ pub const LUT_Z_RANGE: f64 = 5.0;
 /// Smallest mip level side, in texels.
 const MIN_LEVEL_SIDE: usize = 4;
 
-/// Plane levelling before analysis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
-pub enum Leveling {
-    /// Subtract the least-squares plane from height maps (1 channel), leave colour as is.
-    Auto,
-    /// Always subtract the least-squares plane.
-    Plane,
-    /// Keep the data as is.
-    None,
-}
+pub use crate::prep::Leveling;
 
 /// How a crop is made periodic before the FFT-based methods.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -233,9 +221,49 @@ impl BakerBuilder {
         self.0.synth = params;
         self
     }
-    /// Checks every parameter.
+    /// Checks every parameter, and that each option given belongs to the method (a
+    /// roller's `tiles` on an rpn bake is refused, not ignored).
     pub fn build(self) -> Result<Baker> {
         let b = self.0;
+        let m = b.method;
+        let only = |fits: bool, options: &str, methods: &str| -> Result<()> {
+            if fits {
+                Ok(())
+            } else {
+                Err(Error::param(
+                    "method",
+                    m,
+                    format!("{methods} when {options} is given"),
+                ))
+            }
+        };
+        use Method::{Quilt, Roller, Rsgf, Synth};
+        only(
+            m == Roller || (b.tiles.is_none() && b.tile.is_none()),
+            "`tiles` or `tile`",
+            "roller",
+        )?;
+        only(
+            matches!(m, Roller | Quilt) || b.overlap.is_none(),
+            "`overlap`",
+            "roller or quilt",
+        )?;
+        only(m == Quilt || b.colours == 2, "`colours`", "quilt")?;
+        only(
+            matches!(m, Roller | Rsgf) || b.lattice.is_none(),
+            "`lattice`",
+            "roller or rsgf",
+        )?;
+        only(
+            m == Rsgf || b.rsgf == RsgfOptions::default(),
+            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram` or `stochastic`",
+            "rsgf",
+        )?;
+        only(
+            m == Synth || b.synth == crate::models::synth::SynthParams::default(),
+            "`levels`, `k`, `passes`, `fine_passes`, `jitter`, `appearance_dims`, `coherence` or `jitter_levels`",
+            "synth",
+        )?;
         if b.synth.levels != 0 {
             b.synth.validate()?;
         } else {
@@ -248,7 +276,7 @@ impl BakerBuilder {
         if b.rsgf.stochastic && b.lattice.is_some() {
             return Err(Error::param(
                 "lattice",
-                "given with --stochastic",
+                "given with `stochastic`",
                 "one of them: stochastic mode uses v1 = (1, 0), v2 = (0, 1)",
             ));
         }
@@ -355,30 +383,13 @@ impl Baker {
     /// The exemplar as analysis sees it: missing points filled (or refused), levelled,
     /// down-sampled. Returns the raster and its spacing in µm.
     pub fn preprocess(&self, image: &ImageFile, source: &str) -> Result<(Raster, Option<f64>)> {
-        let mut raster = image.raster.clone();
-        let missing = raster.count_nan();
-        if missing > 0 {
-            if !self.fill_missing {
-                return Err(Error::MissingData {
-                    what: source.to_string(),
-                    count: missing,
-                    total: raster.data.len(),
-                });
-            }
-            fill_missing(&mut raster, source)?;
+        let raster = crate::prep::Prep {
+            fill_missing: self.fill_missing,
+            leveling: self.leveling,
+            downsample: self.downsample,
+            filter: self.filter,
         }
-        if raster.data.iter().any(|v| v.is_infinite()) {
-            return Err(Error::decode(source, "the exemplar holds infinite values"));
-        }
-        let level = match self.leveling {
-            Leveling::Plane => true,
-            Leveling::None => false,
-            Leveling::Auto => raster.channels == 1,
-        };
-        if level {
-            level_plane(&mut raster);
-        }
-        let raster = downsample(&raster, self.downsample, self.filter)?;
+        .apply(&image.raster, source)?;
         let spacing = self
             .spacing_um
             .or(image.spacing_um)

@@ -73,6 +73,98 @@ pub struct Comparison {
     pub structure: Option<StructureFigures>,
 }
 
+/// Smallest side `compare_maps` takes: the PSD error's smallest window.
+pub const MIN_STATS_SIDE: usize = 8;
+
+/// Options of [`compare_maps`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CompareOptions {
+    /// Cell size in pixels of B's seam score (and the phase seams of the structure
+    /// figures); `None`: their defaults.
+    pub cell: Option<usize>,
+    /// Plane levelling: height maps are levelled unless `None`; the height figures of a
+    /// colour map level its channel 0.
+    pub leveling: crate::prep::Leveling,
+    /// Fill missing points smoothly instead of refusing a map with any.
+    pub fill_missing: bool,
+    /// Compute the structure (patch) figures too.
+    pub structure: bool,
+}
+
+/// The figures of `b` (a synthesis, named `what_b`) against `a` (an exemplar), as
+/// `surftile stats` prints them: both maps preprocessed alike ([`crate::prep::Prep`]),
+/// the height figures on channel 0, the patch figures on all channels. Refuses a cell
+/// of 0, maps under [`MIN_STATS_SIDE`], a flat A, and channel counts that differ when
+/// the structure figures are asked for.
+pub fn compare_maps(
+    (a, what_a): (&Raster, &str),
+    (b, what_b): (&Raster, &str),
+    options: &CompareOptions,
+) -> crate::Result<Comparison> {
+    use crate::error::Error;
+    use crate::prep::{Leveling, Prep};
+    if options.cell == Some(0) {
+        return Err(Error::param("cell", 0, "a cell size of at least 1 pixel"));
+    }
+    let levelled = options.leveling != Leveling::None;
+    let prep = Prep {
+        fill_missing: options.fill_missing,
+        leveling: if levelled {
+            Leveling::Auto
+        } else {
+            Leveling::None
+        },
+        ..Prep::default()
+    };
+    let (full_a, full_b) = (prep.apply(a, what_a)?, prep.apply(b, what_b)?);
+    // The height figures read channel 0, levelled as asked whatever the channel count;
+    // the patch figures read colour as it is.
+    let height_channel = |full: &Raster| {
+        let mut r = full.channel(0);
+        if levelled && full.channels > 1 {
+            crate::prep::level::level_plane(&mut r);
+        }
+        r
+    };
+    let (ra, rb) = (height_channel(&full_a), height_channel(&full_b));
+    for (what, r) in [(what_a, &ra), (what_b, &rb)] {
+        if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
+            return Err(Error::TooSmall {
+                what: what.to_string(),
+                message: format!(
+                    "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE} (the PSD error's smallest window)",
+                    r.width, r.height
+                ),
+            });
+        }
+    }
+    if ra.data.iter().all(|&v| v == ra.data[0]) {
+        return Err(Error::Analysis {
+            what: what_a.to_string(),
+            message: format!(
+                "A is flat (every height {}{}): W1 and the PSD error measure B against A's spread and spectrum, so A must vary",
+                ra.data[0],
+                if levelled { " after levelling" } else { "" }
+            ),
+        });
+    }
+    let mut figures = compare(&ra, &rb, options.cell);
+    if options.structure {
+        if full_a.channels != full_b.channels {
+            return Err(Error::param(
+                "B's channels",
+                full_b.channels,
+                format!(
+                    "{} like A, for the patch figures (or skip them: `no_structure`)",
+                    full_a.channels
+                ),
+            ));
+        }
+        figures.structure = Some(structure::structure(&full_a, &full_b, options.cell));
+    }
+    Ok(figures)
+}
+
 /// Compares exemplar `a` with synthesis `b`.
 pub fn compare(a: &Raster, b: &Raster, cell: Option<usize>) -> Comparison {
     Comparison {

@@ -723,7 +723,7 @@ impl Session {
             return Err(Error::param(
                 "scale",
                 options.scale,
-                "at least 1/8 with --imperfect (a layer is computed down to 1/8 pixel)",
+                "at least 1/8 with `imperfect` (a layer is computed down to 1/8 pixel)",
             ));
         }
         let layer = match &options.imperfect {
@@ -874,7 +874,7 @@ impl Session {
     /// imperfection layer: `--imperfect`).
     pub fn show(&mut self, mode: Mode) {
         if mode == Mode::Mask && self.source.mask.is_none() {
-            let notice = "this source has no mask (add --imperfect)";
+            let notice = "this source has no mask (add `imperfect`)";
             if self.options.headless {
                 eprintln!("view: {notice}");
             }

@@ -53,7 +53,7 @@ fn gpu_for(window: Arc<Window>) -> Result<(Gpu, wgpu::Surface<'static>)> {
         }
     }
     Err(Error::Gpu(format!(
-        "no GPU adapter can draw to a window ({failure}); install a Vulkan driver (on Debian, mesa-vulkan-drivers for software rendering), or use --headless"
+        "no GPU adapter can draw to a window ({failure}); install a Vulkan driver (on Debian, mesa-vulkan-drivers for software rendering), or use `headless`"
     )))
 }
 
@@ -260,7 +260,7 @@ impl ApplicationHandler for App {
 pub fn run(spec: SourceSpec, options: ViewOptions) -> Result<()> {
     let event_loop = EventLoop::new().map_err(|e| {
         Error::Gpu(format!(
-            "could not open a window ({e}); set DISPLAY or WAYLAND_DISPLAY, or use --headless"
+            "could not open a window ({e}); set DISPLAY or WAYLAND_DISPLAY, or use `headless`"
         ))
     })?;
     let mut app = App {

@@ -302,13 +302,12 @@ impl MillingSurface {
             Some(file) => {
                 let path = base.map_or_else(|| file.into(), |b| b.join(file));
                 let image = crate::io::read_image(&path, &Default::default())?;
-                let mut r = image.raster.channel(0);
-                let what = path.display().to_string();
-                let missing = r.count_nan();
-                if missing > 0 {
-                    crate::analysis::missing::fill_missing(&mut r, &what)?;
+                let r = crate::prep::Prep {
+                    fill_missing: true,
+                    leveling: crate::prep::Leveling::Plane,
+                    ..Default::default()
                 }
-                crate::analysis::level::level_plane(&mut r);
+                .apply(&image.raster.channel(0), &path.display().to_string())?;
                 let s = crate::stats::height_stats(&r);
                 (s.mean, s.sq)
             }
