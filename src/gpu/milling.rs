@@ -21,7 +21,9 @@
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
 
-use super::fill::{bytes, check_scope, dispatch_fill, entry, pipeline, storage, uniform};
+use super::helpers::{
+    BandFill, bytes, check_scope, dispatch_fill, entry, pipeline, storage, uniform,
+};
 use crate::error::Result;
 use crate::models::milling::MillingSurface;
 use crate::models::milling::config::{InteractionKind, ShapeKind};
@@ -209,7 +211,7 @@ impl GpuMilling {
 
     /// One band: ring lists on the host (in parallel over block rows), the fold on the
     /// GPU, and the pixels it left (NaN) recomputed on the host.
-    pub(super) fn fill_band(
+    fn dispatch(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -383,5 +385,25 @@ impl GpuMilling {
         self.recomputed
             .fetch_add(left, std::sync::atomic::Ordering::Relaxed);
         Ok(())
+    }
+}
+
+impl BandFill for GpuMilling {
+    fn fill_band(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        region: &Region,
+        out: &mut [f32],
+    ) -> Result<()> {
+        self.dispatch(device, queue, region, out)
+    }
+
+    fn cpu(&self) -> &dyn Surface {
+        &self.surface
+    }
+
+    fn host_recomputed(&self) -> u64 {
+        self.recomputed.load(std::sync::atomic::Ordering::Relaxed)
     }
 }

@@ -12,11 +12,12 @@
 //! test into a failure.
 
 mod fill;
+mod helpers;
 mod milling;
 mod shaders;
 
-pub(crate) use fill::read_mapped;
 pub use fill::{GpuSurface, HashInput, HashOutput, gpu_hashes};
+pub(crate) use helpers::read_mapped;
 pub use shaders::{SHADER_FILES, composed_modules};
 
 /// The WGSL source of shader module `name` (`shade`, `blend`, …), as the GPU path compiles it.
