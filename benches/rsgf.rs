@@ -19,7 +19,8 @@ use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use surftile::Raster;
 use surftile::lattice::periodic_pattern;
-use surftile::stream::{Region, RsgfParams, RsgfSurface, Surface};
+use surftile::models::rsgf::{RsgfParams, RsgfSurface};
+use surftile::stream::{Region, Surface};
 use texture_synthesis as ts;
 
 const SIDE: usize = 128;

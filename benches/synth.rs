@@ -21,10 +21,12 @@ mod common;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use surftile::Raster;
-use surftile::analysis::synth::synth_model;
 use surftile::io::{ReadOptions, read_image};
-use surftile::stream::synth::SynthSurface;
-use surftile::stream::{Region, RsgfParams, RsgfSurface, Surface, SynthParams};
+use surftile::models::rsgf::{RsgfParams, RsgfSurface};
+use surftile::models::synth::SynthParams;
+use surftile::models::synth::SynthSurface;
+use surftile::models::synth::synth_model;
+use surftile::stream::{Region, Surface};
 use texture_synthesis as ts;
 
 const SIDE: usize = 1024;

@@ -23,9 +23,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
-use surftile::analysis::level::level_plane;
 use surftile::bake::Taper;
 use surftile::io::{ReadOptions, read_image};
+use surftile::prep::level::level_plane;
 use surftile::raster::Raster;
 use surftile::sandblast::Sandblast;
 use surftile::stats::{

@@ -16,13 +16,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
-use surftile::analysis::level::level_plane;
 use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
 use surftile::models::synth::SynthParams;
+use surftile::prep::level::level_plane;
 use surftile::raster::Raster;
 use surftile::stats::structure::structure;
 use surftile::stats::{psd_error, wasserstein1_standardised};

@@ -58,7 +58,7 @@ pub mod io;
 pub mod kinds;
 pub mod lattice;
 pub mod models;
-pub mod nn;
+pub(crate) mod nn;
 pub mod prep;
 pub mod raster;
 pub mod render;

@@ -8,7 +8,6 @@ use std::time::Instant;
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 use clap::{Args, Parser, Subcommand};
 
-use surftile::analysis::resample::DownsampleFilter;
 use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
@@ -18,6 +17,7 @@ use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::models::rsgf::{Join, Metric};
 use surftile::models::synth::SynthParams;
+use surftile::prep::resample::DownsampleFilter;
 use surftile::render::{LayerOutputs, checked_size, render_imperfect, render_to_file};
 use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;

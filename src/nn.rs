@@ -221,11 +221,6 @@ impl KdTree {
         }
     }
 
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.ids.len()
-    }
-
     /// True when the tree holds no point.
     pub fn is_empty(&self) -> bool {
         self.ids.is_empty()

@@ -9,10 +9,10 @@
 use std::path::{Path, PathBuf};
 
 use surftile::Raster;
-use surftile::analysis::level::level_plane;
 use surftile::bake::Baker;
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image, write_heights};
+use surftile::prep::level::level_plane;
 use surftile::stats::{
     FidelityBars, fidelity_bars, psd_error, seam_score_by, wasserstein1_standardised,
 };

@@ -215,7 +215,7 @@ fn measured_map_reads_with_its_known_shape() {
         (200, 296, 1, 0)
     );
     let mut levelled = r.clone();
-    surftile::analysis::level::level_plane(&mut levelled);
+    surftile::prep::level::level_plane(&mut levelled);
     let sq = (levelled
         .data
         .iter()

@@ -2,10 +2,10 @@
 
 use rand::{RngExt, SeedableRng};
 use surftile::Raster;
-use surftile::analysis::level::level_plane;
 use surftile::bake::{Baker, Taper};
 use surftile::bank::Method;
 use surftile::io::{ImageFile, ReadOptions, read_image};
+use surftile::prep::level::level_plane;
 use surftile::sandblast::{Route, Sandblast};
 use surftile::stats::{Acf, height_stats, psd_error, seam_score_by};
 use surftile::stream::{Region, Surface, ToroidalSurface};

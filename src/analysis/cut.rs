@@ -2,8 +2,10 @@
 //! (the paper's A* search is only a speed-up of it), used by the roller's double
 //! toroidal tiles and by Efros–Freeman stitching.
 
+#[cfg(test)]
 use crate::error::{Error, Result};
 
+#[cfg(test)]
 /// Overlap error of seed 003, eq. (1), for an axis-aligned period u = (m, 0): over the
 /// strip of `overlap` columns, ψ(r, k) = Σ_c (Y(r, k) − Y(r, m + k))² summed over
 /// channels. `plane` is row-major `width × height × channels`; needs m + overlap ≤ width.
@@ -76,6 +78,7 @@ pub fn min_cut_vertical(err: &[f64], width: usize, height: usize) -> Vec<usize> 
     path
 }
 
+#[cfg(test)]
 /// Total error of a path (the quantity [`min_cut_vertical`] minimises).
 pub fn path_error(err: &[f64], width: usize, path: &[usize]) -> f64 {
     path.iter()

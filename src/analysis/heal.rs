@@ -51,6 +51,7 @@ pub fn neighbours(l: &Lattice, x: i64, y: i64) -> [usize; 4] {
     [right, down, left, up]
 }
 
+#[cfg(test)]
 /// Applies the 4-neighbour Laplacian on ℤ²/Λ: (L c)(q) = Σₙ (c(q) − c(n)).
 /// The slow reference for [`solve_torus`] (tests).
 pub fn laplacian(l: &Lattice, c: &[f64]) -> Vec<f64> {

@@ -1,16 +1,14 @@
 //! Offline analysis stages, one file per method. Everything here runs once, at bake time.
 
-pub mod cut;
+pub(crate) mod cut;
 pub mod gauss;
-pub mod heal;
+pub(crate) mod heal;
 pub mod ncc;
-pub mod periodic;
-pub mod periodicity;
-pub mod quilt;
+pub(crate) mod periodic;
+pub(crate) mod periodicity;
+pub(crate) mod quilt;
 pub mod roller;
 pub mod rpn;
-pub mod stitch;
-pub mod taper;
+pub(crate) mod stitch;
+pub(crate) mod taper;
 pub mod translation;
-
-pub use crate::prep::{level, missing, resample};

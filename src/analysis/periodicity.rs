@@ -64,6 +64,7 @@ const RELATIVE_STRENGTH: f64 = 0.9;
 /// the maximum to count as a repeat (see the module notes).
 pub const MIN_DIP: f64 = 0.25;
 
+#[cfg(test)]
 /// Detects the periodicity lattice of `image` (its channels averaged), or `None` for an
 /// exemplar without a two-dimensional lattice (stochastic, or stripes: see [`detect`]).
 pub fn detect_lattice(image: &Raster) -> Option<Periodicity> {

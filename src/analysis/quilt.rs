@@ -115,11 +115,8 @@ impl WangLayout {
 
 /// A quilted Wang tile set, with the samples it was made of (for inspection and tests).
 #[derive(Clone, Debug)]
+#[cfg_attr(not(test), allow(dead_code))]
 pub struct WangTiles {
-    /// The layout.
-    pub layout: WangLayout,
-    /// Values per pixel.
-    pub channels: usize,
     /// K⁴ tiles of T × T × channels, indexed `((W·K + E)·K + S)·K + N`.
     pub tiles: Vec<Vec<f32>>,
     /// Per colour, the vertical-edge strip: 2e wide, T + 2e tall; column e is the first
@@ -540,8 +537,6 @@ pub fn wang_tiles(
         icost / in_.max(1) as f64
     ));
     Ok(WangTiles {
-        layout: lay,
-        channels: c,
         tiles,
         vertical,
         horizontal,

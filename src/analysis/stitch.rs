@@ -86,11 +86,6 @@ impl StitchParams {
         Ok(self)
     }
 
-    /// Patch side M_P in pixels.
-    pub fn patch(&self) -> usize {
-        self.patch
-    }
-
     /// Overlap o in pixels.
     pub fn overlap(&self) -> usize {
         self.overlap
