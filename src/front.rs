@@ -144,6 +144,14 @@ impl Source {
         })
     }
 
+    /// The imperfection layer over `inner` (a surface of this source, perhaps filled on
+    /// the GPU), its noise seeded with `seed`; `None` without a layer.
+    pub fn imperfect_over<S: Surface>(&self, inner: S, seed: u32) -> Option<Result<Imperfect<S>>> {
+        self.layer
+            .as_ref()
+            .map(|layer| Imperfect::new(inner, &layer.config, layer.base.as_deref(), seed))
+    }
+
     /// The source as its kind loaded it, without the layer.
     pub fn loaded(&self) -> &dyn Loaded {
         self.loaded.as_ref()

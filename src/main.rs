@@ -12,7 +12,6 @@ use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
 use surftile::demo::run_demo;
-use surftile::imperfect::{Imperfect, ImperfectConfig};
 use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::models::rsgf::{Join, Metric};
@@ -985,18 +984,15 @@ fn run(command: Command) -> Result<()> {
             for path in [&mask, &tendency, &colour].into_iter().flatten() {
                 check_output(path)?;
             }
-            let layer_config = match &imperfect {
-                Some(path) => {
-                    let (mut c, base) = ImperfectConfig::load(path)?;
-                    if let Some(a) = age {
-                        c.age = a;
-                        c.validate()?;
-                    }
-                    Some((c, base))
-                }
-                None => None,
-            };
-            let (spec, mut surface) = load_surface(&source, seed, spacing)?;
+            let mut open = surftile::Open::new(&source).spacing_um(spacing);
+            if let Some(path) = &imperfect {
+                open = open.imperfection(path);
+            }
+            if let Some(a) = age {
+                open = open.age(a);
+            }
+            let spec = open.open()?;
+            let mut surface = spec.loaded().surface(seed)?;
             let shading = shading.options(spec.material())?;
             if gpu {
                 match surftile::gpu::GpuFilled::for_source(spec.loaded(), seed) {
@@ -1008,8 +1004,10 @@ fn run(command: Command) -> Result<()> {
                 }
             }
             let start = Instant::now();
-            if let Some((config, base)) = layer_config {
-                let layer = Imperfect::new(surface, &config, base.as_deref(), seed)?;
+            if let Some((config, _)) = spec.imperfection() {
+                let layer = spec
+                    .imperfect_over(surface, seed)
+                    .expect("a source with a layer")?;
                 render_imperfect(
                     &layer,
                     &region,
@@ -1089,7 +1087,9 @@ fn run(command: Command) -> Result<()> {
             let start = Instant::now();
             let image = read_image(&exemplar, &raw_options(&raw_shape)?)?;
             let source = exemplar.display().to_string();
-            let made = pipeline.run(&image, &source, &mut |l| eprintln!("sandblast: {l}"))?;
+            let made = pipeline.run(&image, &source, &mut |l| {
+                eprintln!("sandblast: {}", cli_words(l))
+            })?;
             write_heights(&out, &made.raster, made.spacing_um)?;
             eprintln!(
                 "sandblast: wrote {} ({w}×{h}{}) in {:.2} s",

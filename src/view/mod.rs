@@ -726,17 +726,9 @@ impl Session {
                 "at least 1/8 with `imperfect` (a layer is computed down to 1/8 pixel)",
             ));
         }
-        let layer = match &options.imperfect {
-            Some(path) => {
-                let (mut c, base) = crate::imperfect::ImperfectConfig::load(path)?;
-                if let Some(a) = options.age {
-                    c.age = a;
-                    c.validate()?;
-                }
-                Some((c, base))
-            }
-            None => None,
-        };
+        let layer = spec
+            .imperfection()
+            .map(|(c, base)| (c.clone(), base.map(Path::to_path_buf)));
         let source = Source::open(
             &spec,
             options.seed,
@@ -1078,9 +1070,14 @@ impl Session {
 /// frame-time summary at the end and writes the screenshot, if asked.
 pub fn run(source: &Path, options: ViewOptions) -> Result<()> {
     options.validate()?;
-    let spec = crate::Open::new(source)
-        .spacing_um(options.spacing_um)
-        .open()?;
+    let mut open = crate::Open::new(source).spacing_um(options.spacing_um);
+    if let Some(path) = &options.imperfect {
+        open = open.imperfection(path);
+    }
+    if let Some(age) = options.age {
+        open = open.age(age);
+    }
+    let spec = open.open()?;
     if options.headless {
         let mut session = Session::new(Gpu::new()?, spec, options)?;
         eprintln!("view: drawing on {}", session.gpu().describe());
