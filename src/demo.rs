@@ -76,7 +76,7 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     let baker = Baker::builder().seed(1).build()?;
     let bank = baker.bake(&image, "tiles/di-6.npy", &mut |_| {})?;
     let bank_path = dir.join("di-6.bank");
-    bank.write(&bank_path)?;
+    crate::kinds::write_bank(&bank, &bank_path)?;
     step(
         "bake: RPN bank of 8 tiles from the 512×512 AFM map di-6",
         bank_path,
@@ -157,7 +157,7 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     let roller = Baker::builder().method(Method::Roller).tiles(4).build()?;
     let bank = roller.bake(&ridged, "tiles/x3p-2-crop.npy", &mut |_| {})?;
     let bank_path = dir.join("x3p-2-roller.bank");
-    bank.write(&bank_path)?;
+    crate::kinds::write_bank(&bank, &bank_path)?;
     let [u, v] = bank.header.lattice;
     step(
         &format!(
@@ -199,7 +199,7 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     let rsgf = Baker::builder().method(Method::Rsgf).build()?;
     let bank = rsgf.bake(&ridged, "tiles/x3p-2-crop.npy", &mut |_| {})?;
     let bank_path = dir.join("x3p-2-rsgf.bank");
-    bank.write(&bank_path)?;
+    crate::kinds::write_bank(&bank, &bank_path)?;
     let [v1, v2] = bank.header.lattice;
     step(
         &format!(
@@ -232,7 +232,7 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
     let (config, _) = MillingConfig::load("parallel-d4-ae05".as_ref())?;
     let parallel = MillingSurface::new(&config, 6.1, 0)?;
     let bank_path = dir.join("milling-parallel.bank");
-    parallel.to_bank("parallel-d4-ae05")?.write(&bank_path)?;
+    crate::kinds::write_bank(&parallel.to_bank("parallel-d4-ae05")?, &bank_path)?;
     step(
         "bake: milling bank, preset parallel-d4-ae05 (4 mm head, a_e = 0.5)",
         bank_path,

@@ -58,7 +58,8 @@ impl Open {
     }
 
     /// The pixel spacing in µm a milling source is drawn at (default
-    /// [`DEFAULT_SPACING_UM`]); banks keep the spacing they were baked with.
+    /// [`DEFAULT_SPACING_UM`]), checked by the kinds that use it; banks keep the spacing
+    /// they were baked with, and models are in pixels.
     pub fn spacing_um(mut self, spacing_um: f64) -> Open {
         self.spacing_um = spacing_um;
         self
@@ -78,15 +79,9 @@ impl Open {
         self
     }
 
-    /// Checks the options, then loads the source and the layer's configuration.
+    /// Loads the layer's configuration (checking its age) and the source (its kind
+    /// checks what it uses, such as a milling spacing).
     pub fn open(self) -> Result<Source> {
-        if !(self.spacing_um.is_finite() && self.spacing_um > 0.0) {
-            return Err(Error::param(
-                "spacing_um",
-                self.spacing_um,
-                "a positive, finite pixel spacing in µm",
-            ));
-        }
         let layer = match (&self.imperfection, self.age) {
             (None, Some(age)) => {
                 return Err(Error::param(

@@ -784,7 +784,7 @@ fn bake_milling(config: &Path, spacing: Option<f64>, seed: u64, out: &Path) -> R
     let (c, base) = MillingConfig::load(config)?;
     let surface =
         MillingSurface::new(&c, spacing, seed as u32)?.adapt_from_config(base.as_deref())?;
-    surface.to_bank(&config.display().to_string())?.write(out)?;
+    surftile::kinds::write_bank(&surface.to_bank(&config.display().to_string())?, out)?;
     eprintln!(
         "bake: wrote {} in {:.2} s",
         out.display(),
@@ -935,7 +935,7 @@ fn run(command: Command) -> Result<()> {
             let bank = baker.bake(&image, &source, &mut |line| {
                 eprintln!("bake: {}", cli_words(line))
             })?;
-            bank.write(&out)?;
+            surftile::kinds::write_bank(&bank, &out)?;
             eprintln!(
                 "bake: wrote {} in {:.2} s",
                 out.display(),
@@ -992,17 +992,27 @@ fn run(command: Command) -> Result<()> {
                 open = open.age(a);
             }
             let spec = open.open()?;
-            let mut surface = spec.loaded().surface(seed)?;
             let shading = shading.options(spec.material())?;
-            if gpu {
+            // On the GPU when asked and possible (its surface carries the CPU twin for
+            // single samples), else on the CPU: the source is built once either way.
+            let on_gpu: Option<Box<dyn Surface>> = if gpu {
                 match surftile::gpu::GpuFilled::for_source(spec.loaded(), seed) {
                     Ok(g) => {
                         eprintln!("render: filling on the GPU, {}", g.gpu().describe());
-                        surface = Box::new(g);
+                        Some(Box::new(g))
                     }
-                    Err(e) => eprintln!("render: {e}; filling on the CPU instead"),
+                    Err(e) => {
+                        eprintln!("render: {e}; filling on the CPU instead");
+                        None
+                    }
                 }
-            }
+            } else {
+                None
+            };
+            let surface = match on_gpu {
+                Some(s) => s,
+                None => spec.loaded().surface(seed)?,
+            };
             let start = Instant::now();
             if let Some((config, _)) = spec.imperfection() {
                 let layer = spec

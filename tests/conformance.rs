@@ -335,3 +335,52 @@ fn the_checks_catch_broken_surfaces() {
         "a fill that is not its samples passed fill ⇄ sample"
     );
 }
+
+/// A model kind's record is checked by its kind: a bank whose container is sound but
+/// whose synth candidates, RSGF parameters or milling tables are not is refused when read
+/// through the registry, written through it, or opened, with one line naming the bank.
+#[test]
+fn kinds_refuse_broken_records() {
+    use surftile::bank::Record;
+    let dir = tempfile::tempdir().unwrap();
+    let mut broken = Vec::new();
+    // A synth candidate outside the exemplar.
+    let mut synth = bake(Method::Synth, "tests/data/gimp-dried-mud.png");
+    let last = synth.extra[0].len() - 1;
+    synth.extra[0][last] = 1e9;
+    broken.push(("synth", synth, "candidates outside the exemplar"));
+    // RSGF blocks of 0 px.
+    let mut rsgf = bake(Method::Rsgf, "tests/data/gimp-dried-mud.png");
+    if let Record::Rsgf(v) = &mut rsgf.header.record {
+        v["block_px"] = 0.into();
+    }
+    broken.push(("rsgf", rsgf, "block"));
+    // A milling shape table outside [−1, 1].
+    let (config, _) = MillingConfig::load("parallel-d4-ae05".as_ref()).unwrap();
+    let mut milling = MillingSurface::new(&config, 6.1, 0)
+        .unwrap()
+        .to_bank("parallel-d4-ae05")
+        .unwrap();
+    milling.luts[0][7] = 2.0;
+    broken.push(("milling", milling, "outside [−1, 1]"));
+    for (name, bank, word) in broken {
+        let path = dir.path().join(format!("{name}.bank"));
+        // The container is sound: it writes and reads as bytes.
+        bank.write(&path).unwrap();
+        Bank::read(&path).unwrap();
+        for e in [
+            surftile::kinds::read_bank(&path).unwrap_err(),
+            surftile::open(&path).err().unwrap(),
+            surftile::kinds::open(&bank, 0).err().unwrap(),
+            surftile::kinds::write_bank(&bank, &dir.path().join("out.bank")).unwrap_err(),
+        ] {
+            let text = e.to_string();
+            assert!(text.contains(word), "{name}: {text}");
+            assert!(!text.contains('\n'), "{name}: one line: {text}");
+        }
+        assert!(
+            !dir.path().join("out.bank").exists(),
+            "{name}: written anyway"
+        );
+    }
+}

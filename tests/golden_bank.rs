@@ -147,3 +147,57 @@ fn validation_catches_what_a_checksum_cannot() {
     let e = Bank::from_bytes(&frame(1, b"{not json", payload), "x").unwrap_err();
     assert!(e.to_string().contains("header is not valid"), "{e}");
 }
+
+/// Banks of the model kinds written by commit 78e00e5, before the header became common
+/// fields plus a per-rule record (tests/data/README.md says how they were made): each
+/// reads and is checked through the registry, says what it is, and samples what that
+/// build's `surftile sample --seed 3` printed, bit for bit.
+#[test]
+fn model_kind_banks_of_the_first_v1_builds_read_and_sample_the_same() {
+    /// (x, y, what the old build printed there).
+    type Samples = [(f64, f64, &'static str); 3];
+    let cases: [(&str, Rule, Samples); 3] = [
+        (
+            "tests/data/golden-v1-rsgf.bank",
+            Rule::Rsgf,
+            [
+                (3.5, -7.25, "0.0100589525"),
+                (1e9, 42.5, "0.0010944817"),
+                (-123456.0, 0.75, "0.004860184"),
+            ],
+        ),
+        (
+            "tests/data/golden-v1-synth.bank",
+            Rule::Synth,
+            [
+                (3.5, -7.25, "-0.00261829"),
+                (1e9, 42.5, "-0.0042008045"),
+                (-123456.0, 0.75, "-0.0015097684"),
+            ],
+        ),
+        (
+            "tests/data/golden-v1-milling.bank",
+            Rule::Milling,
+            [
+                (3.5, -7.25, "0.25985724"),
+                (1e9, 42.5, "-0.41195816"),
+                (-123456.0, 0.75, "0.13323636"),
+            ],
+        ),
+    ];
+    for (file, rule, samples) in cases {
+        let bank = surftile::kinds::read_bank(&common::repo(file))
+            .unwrap_or_else(|e| panic!("{file} must stay readable: {e}"));
+        assert_eq!(bank.header.rule(), rule, "{file}");
+        assert!(!surftile::kinds::describe(&bank).unwrap().is_empty());
+        let surface = surftile::kinds::open(&bank, 3).unwrap();
+        for (x, y, printed) in samples {
+            let want: f32 = printed.parse().unwrap();
+            assert_eq!(
+                surface.height(x, y).to_bits(),
+                want.to_bits(),
+                "{file} at ({x}, {y})"
+            );
+        }
+    }
+}

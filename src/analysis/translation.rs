@@ -262,10 +262,13 @@ pub const SYNTHESISE_WITHOUT_LATTICE: &str = "to synthesise it anyway, bake it w
 /// with [`SYNTHESISE_WITHOUT_LATTICE`].
 pub fn estimate_lattice(image: &Raster, what: &str) -> Result<(NccMap, Translation, Vec<String>)> {
     if image.data.iter().any(|v| v.is_nan()) {
-        return Err(crate::error::Error::MissingData {
+        return Err(crate::error::Error::Analysis {
             what: what.to_string(),
-            count: image.count_nan(),
-            total: image.data.len(),
+            message: format!(
+                "{} of {} points are missing (NaN); the autocorrelation needs a complete map",
+                image.count_nan(),
+                image.data.len()
+            ),
         });
     }
     let map = autocorrelation(image)?;

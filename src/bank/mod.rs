@@ -12,9 +12,12 @@
 //! | 4 | CRC-32 (IEEE) of every byte before it |
 //!
 //! The reader checks, in this order and before any of the data is used: magic, version,
-//! length, checksum, header, sizes (the payload must be exactly what the header
-//! describes) and values (all finite, tables monotone). A bank written by one build is
-//! read by the next: `tests/data/golden-v1.bank` guards that.
+//! length, checksum, header (each rule's own fields present, no other rule's), sizes
+//! (the payload must be exactly what the header describes) and values (all finite,
+//! tables monotone). That is the container; what a model kind's record must hold
+//! (milling, RSGF, synth parameters and tables) its kind checks (`kinds::check`, run by
+//! `kinds::read_bank`, `kinds::write_bank` and every open). A bank written by one build
+//! is read by the next: `tests/data/golden-v1*.bank` guard that.
 
 use std::io::Write;
 use std::path::Path;
@@ -725,7 +728,11 @@ impl Bank {
         let mut take = |count: usize| -> Result<Vec<f32>> {
             let n = count
                 .checked_mul(4)
-                .filter(|n| offset + n <= payload.len())
+                .filter(|&n| {
+                    offset
+                        .checked_add(n)
+                        .is_some_and(|end| end <= payload.len())
+                })
                 .ok_or_else(|| bad("truncated: the data is shorter than the header says"))?;
             let v = bytemuck::pod_collect_to_vec::<u8, f32>(&payload[offset..offset + n]);
             offset += n;
@@ -774,7 +781,9 @@ impl Bank {
         Bank::with_extra(header, texels, luts, extra, what)
     }
 
-    /// Reads and validates a bank file.
+    /// Reads a bank file and checks its container ([`Bank::validate`]); the record of a
+    /// model kind is checked by its kind when the bank is opened
+    /// (`kinds::read_bank` checks both at once).
     pub fn read(path: &Path) -> Result<Bank> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         Bank::from_bytes(&bytes, &path.display().to_string())

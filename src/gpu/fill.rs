@@ -200,10 +200,12 @@ impl GpuSurface {
         source: &dyn Loaded,
         seed: u32,
     ) -> Result<GpuSurface> {
-        match (source.bank(), source.milling(seed)) {
-            (Some(bank), _) => GpuSurface::new(device, queue, bank, seed),
-            (None, Some(milling)) => GpuSurface::milling(device, milling?),
-            (None, None) => Err(unsupported(source.kind().name(), source.kind().gpu())),
+        if let Some(bank) = source.bank() {
+            return GpuSurface::new(device, queue, bank, seed);
+        }
+        match source.milling(seed) {
+            Some(milling) => GpuSurface::milling(device, milling?),
+            None => Err(unsupported(source.kind().name(), source.kind().gpu())),
         }
     }
 

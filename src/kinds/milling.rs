@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use super::{GpuFill, Kind, LoadOptions, Loaded, Spec};
 use crate::bank::{Bank, Rule};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::models::milling::config::PRESETS;
 use crate::models::milling::{MillingConfig, MillingSurface, check_bank};
 use crate::stream::Surface;
@@ -38,6 +38,14 @@ impl Kind for Milling {
                 std::path::Path::new(name)
             }
         };
+        if !(options.spacing_um.is_finite() && options.spacing_um > 0.0 && options.spacing_um < 1e9)
+        {
+            return Some(Err(Error::param(
+                "spacing",
+                options.spacing_um,
+                "a positive pixel spacing in µm",
+            )));
+        }
         Some(MillingConfig::load(path).map(|(config, base)| {
             Box::new(MillingSource {
                 config,

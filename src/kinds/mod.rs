@@ -3,8 +3,8 @@
 //! A kind knows how to recognise and load what a user points at (a bank of its rule, a
 //! `.toml` by its tables, a preset name), open a [`Surface`] for a seed, describe a bank
 //! of its rule (`surftile info`), check its bank record, and whether it fills on the
-//! GPU. Everything that dispatches on kinds (`render`, `sample`, `view`, `info`,
-//! `--gpu`, the page streamer, the demo, [`crate::open`]) asks this registry.
+//! GPU. Everything that dispatches on kinds (`render`, `sample`, `view` and its pages,
+//! `info`, `--gpu`, [`crate::open`]) asks this registry.
 //!
 //! Adding a kind: one new module implementing [`Kind`], and one line in [`KINDS`].
 
@@ -172,6 +172,12 @@ pub fn read_bank(path: &Path) -> Result<Bank> {
     Ok(bank)
 }
 
+/// Checks `bank` in full, then writes it (atomically: a temporary file, renamed).
+pub fn write_bank(bank: &Bank, path: &Path) -> Result<()> {
+    check(bank, "being written")?;
+    bank.write(path)
+}
+
 /// The `surftile info` lines of a bank's rule.
 pub fn describe(bank: &Bank) -> Result<Vec<String>> {
     of_bank(bank).describe_bank(bank)
@@ -218,7 +224,10 @@ pub fn load(path: &Path, options: LoadOptions) -> Result<Box<dyn Loaded>> {
         match path.to_str() {
             // A path to a file that is not there.
             Some(name) if name.contains(['/', '\\']) => {
-                return Err(Error::io(path, std::io::ErrorKind::NotFound.into()));
+                return Err(Error::io(
+                    path,
+                    std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+                ));
             }
             Some(name) => Spec::Name(name),
             None => return Err(unknown(path)),

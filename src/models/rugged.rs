@@ -5,7 +5,7 @@
 //! Presets (`tiles/models/*.toml`, compiled in): `rock` (Plate 1), `china` (Plate 2),
 //! `casting` (Plate 3), `cells-convex` and `cells-concave` (Plate 4). A preset name is
 //! accepted wherever a bank is (`surftile render`, `sample`, `view`, the library's
-//! [`crate::source::SourceSpec`]).
+//! [`crate::open`]).
 //!
 //! ```toml
 //! material = "rock"   # shading: rock, china or casting

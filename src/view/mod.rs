@@ -211,10 +211,24 @@ impl Source {
         } else {
             gpu.clone()
         };
-        let cpu: Arc<dyn Surface> = Arc::from(spec.loaded().surface(seed)?);
-        let gpu_surface = on_gpu
-            .then(|| GpuSurface::for_source(&fill_gpu.device, &fill_gpu.queue, spec.loaded(), seed))
-            .transpose()?;
+        // A milling source is built once (its `[adapt]` may read a measurement), for
+        // the CPU twin and the GPU upload alike.
+        let (cpu, gpu_surface): (Arc<dyn Surface>, Option<GpuSurface>) =
+            match spec.loaded().milling(seed).transpose()? {
+                Some(m) => {
+                    let g = on_gpu
+                        .then(|| GpuSurface::milling(&fill_gpu.device, m.clone()))
+                        .transpose()?;
+                    (Arc::new(m), g)
+                }
+                None => {
+                    let (device, queue) = (&fill_gpu.device, &fill_gpu.queue);
+                    let g = on_gpu
+                        .then(|| GpuSurface::for_source(device, queue, spec.loaded(), seed))
+                        .transpose()?;
+                    (Arc::from(spec.loaded().surface(seed)?), g)
+                }
+            };
         let workers = default_threads().clamp(1, 16);
         // An imperfection layer over the surface: its heights and, for the mask view,
         // its layer ids, both through CPU pages.
@@ -719,11 +733,11 @@ impl Session {
     /// A session on `gpu` showing `spec`.
     pub fn new(gpu: Gpu, spec: SourceSpec, options: ViewOptions) -> Result<Session> {
         options.validate()?;
-        if options.imperfect.is_some() && options.scale < crate::imperfect::MIN_STEP {
+        if spec.imperfection().is_some() && options.scale < crate::imperfect::MIN_STEP {
             return Err(Error::param(
                 "scale",
                 options.scale,
-                "at least 1/8 with `imperfect` (a layer is computed down to 1/8 pixel)",
+                "at least 1/8 with an imperfection layer (a layer is computed down to 1/8 pixel)",
             ));
         }
         let layer = spec
@@ -866,7 +880,7 @@ impl Session {
     /// imperfection layer: `--imperfect`).
     pub fn show(&mut self, mode: Mode) {
         if mode == Mode::Mask && self.source.mask.is_none() {
-            let notice = "this source has no mask (add `imperfect`)";
+            let notice = "this source has no mask (it needs an imperfection layer)";
             if self.options.headless {
                 eprintln!("view: {notice}");
             }
