@@ -39,11 +39,26 @@ fn extended_gcd(p: i64, q: i64) -> (i64, i64, i64) {
     }
 }
 
+/// Largest magnitude of a lattice vector's components, in pixels (2³⁰): far beyond any
+/// tile, and small enough that the Hermite normal form's products cannot overflow.
+pub const MAX_COMPONENT: i64 = 1 << 30;
+
 impl Lattice {
     /// The Hermite normal form of the lattice spanned by u and v (ALGORITHMS.md §1):
     /// C = gcd(u₂, v₂); with m·u₂ + n·v₂ = C, w = m·u + n·v has w₂ = C;
-    /// A = |det(u, v)| / C; B = w₁ mod A. Collinear vectors are refused.
+    /// A = |det(u, v)| / C; B = w₁ mod A. Collinear vectors, and components beyond
+    /// ±[`MAX_COMPONENT`], are refused.
     pub fn from_basis(u: (i64, i64), v: (i64, i64)) -> Result<Lattice> {
+        if [u.0, u.1, v.0, v.1]
+            .iter()
+            .any(|c| c.unsigned_abs() > MAX_COMPONENT as u64)
+        {
+            return Err(Error::param(
+                "lattice",
+                format!("({},{});({},{})", u.0, u.1, v.0, v.1),
+                "vector components within ±2^30 pixels",
+            ));
+        }
         let det = u.0 as i128 * v.1 as i128 - u.1 as i128 * v.0 as i128;
         if det == 0 {
             return Err(Error::param(

@@ -283,6 +283,36 @@ impl ImperfectConfig {
                 "finite depths ≥ 0, in σ of the surface heights",
             ));
         }
+        if !l.colours.is_empty() {
+            // Peeling shows the colour of each layer laid bare (the object's and one per
+            // threshold); dust and patina blend the object's with the layer's.
+            let wanted = match self.pattern {
+                Pattern::Peeling => l.thresholds.len() + 1,
+                Pattern::Dust | Pattern::Patina => 2,
+            };
+            if l.colours.len() < wanted {
+                return Err(Error::param(
+                    "layers.colours",
+                    l.colours.len(),
+                    format!(
+                        "at least {wanted} RGB colours for {:?} (the object's, then one per layer)",
+                        self.pattern
+                    )
+                    .to_lowercase(),
+                ));
+            }
+            if let Some(c) = l
+                .colours
+                .iter()
+                .find(|c| c.iter().any(|v| !(0.0..=1.0).contains(v)))
+            {
+                return Err(Error::param(
+                    "layers.colours",
+                    format!("{c:?}"),
+                    "RGB components within [0, 1]",
+                ));
+            }
+        }
         Ok(())
     }
 }

@@ -35,6 +35,30 @@ pub struct ImageFile {
     pub spacing_um: Option<f64>,
 }
 
+/// Most pixels any reader decodes (2²⁵, e.g. 5792²): at 4 channels of f32 that is 512 MiB,
+/// so a small file claiming a huge image (a decompression bomb, a lying header) is
+/// refused before anything is allocated.
+pub const MAX_IMAGE_PIXELS: usize = 1 << 25;
+
+/// Checks a shape read from a file (or given for a raw one) before anything is
+/// allocated for it: 1 to 4 channels, sides of at least 1, and at most
+/// [`MAX_IMAGE_PIXELS`] pixels, with checked arithmetic. Returns the sample count.
+pub(crate) fn check_shape(what: &str, w: usize, h: usize, c: usize) -> Result<usize> {
+    if !(1..=4).contains(&c) {
+        return Err(Error::decode(
+            what,
+            format!("{c} channels; expected 1 to 4"),
+        ));
+    }
+    match w.checked_mul(h) {
+        Some(n) if n > 0 && n <= MAX_IMAGE_PIXELS => Ok(n * c),
+        Some(0) => Err(Error::decode(what, format!("an empty image ({w}×{h})"))),
+        _ => Err(Error::Limits(format!(
+            "{what}: {w}×{h} pixels; this reader takes at most {MAX_IMAGE_PIXELS} (2^25) pixels"
+        ))),
+    }
+}
+
 /// Options for reading; only raw files need any.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ReadOptions {

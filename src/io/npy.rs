@@ -23,6 +23,7 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             )));
         }
     };
+    let samples = super::check_shape(what, w, h, c)?;
     let DType::Plain(ts) = npy.dtype() else {
         return Err(bad(
             "structured dtype; expected a plain numeric array".into()
@@ -68,7 +69,7 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             )));
         }
     };
-    if data.len() != w * h * c {
+    if data.len() != samples {
         return Err(bad("data length does not match the shape".into()));
     }
     // Fortran order: element (y, x, ch) sits at y + h·(x + w·ch).

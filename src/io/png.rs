@@ -33,6 +33,10 @@ fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
         .iter()
         .find(|t| t.keyword == META_KEY)
         .and_then(|t| serde_json::from_str(&t.text).ok());
+    {
+        let info = reader.info();
+        super::check_shape(what, info.width as usize, info.height as usize, 1)?;
+    }
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| Error::Limits(format!("{what}: PNG too large to decode")))?;

@@ -9,7 +9,7 @@ pub(super) fn read(
     what: &str,
     (w, h, c): (usize, usize, usize),
 ) -> Result<ImageFile> {
-    let expected = w * h * c * 4;
+    let expected = super::check_shape(what, w, h, c)? * 4;
     if bytes.len() != expected {
         return Err(Error::decode(
             what,

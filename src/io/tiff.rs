@@ -27,6 +27,7 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             )));
         }
     };
+    super::check_shape(what, w as usize, h as usize, channels)?;
     let spacing_um = dec
         .get_tag_ascii_string(Tag::ImageDescription)
         .ok()

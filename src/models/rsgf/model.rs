@@ -58,6 +58,10 @@ pub(crate) struct Level {
     pub data: Vec<f32>,
 }
 
+/// Farthest (Chebyshev, px) a residue without patch positions borrows those of its
+/// neighbours; beyond it the exemplar does not show the lattice's period.
+pub const MAX_NEAR_OFFSET: i64 = 8;
+
 /// Lists of positions (indices qy·nx + qx), one per residue, packed (CSR).
 struct Lists {
     start: Vec<u32>,
@@ -170,9 +174,30 @@ impl RsgfModel {
                 let mut found: Vec<u32> = Vec::new();
                 let mut d = 1i64;
                 while found.is_empty() {
-                    for dy in -d..=d {
-                        for dx in -d..=d {
-                            if dx.abs().max(dy.abs()) == d {
+                    // A residue with no position nearby: the exemplar does not show this
+                    // part of the period (a cell taller or wider than the exemplar's
+                    // patch positions). Refused, where an unbounded search would scan
+                    // rings as wide as the cell for every such residue.
+                    if d > MAX_NEAR_OFFSET {
+                        return Err(Error::param(
+                            "lattice",
+                            format!(
+                                "({},{});({},{})",
+                                params.v1.0, params.v1.1, params.v2.0, params.v2.1
+                            ),
+                            format!(
+                                "a period the {w}×{h} exemplar shows: residue ({rx}, {ry}) of its {}×{} cell has no patch position within {MAX_NEAR_OFFSET} px ({nx}×{ny} positions for patches of {ext} px)",
+                                lattice.a, lattice.c
+                            ),
+                        ));
+                    }
+                    // The ring at Chebyshev offset d only.
+                    for k in -d..=d {
+                        for (dx, dy) in [(k, -d), (k, d)] {
+                            found.extend_from_slice(exact.get(residue_of(rx + dx, ry + dy)));
+                        }
+                        if k.abs() < d {
+                            for (dx, dy) in [(-d, k), (d, k)] {
                                 found.extend_from_slice(exact.get(residue_of(rx + dx, ry + dy)));
                             }
                         }
