@@ -160,3 +160,26 @@ fn raw_shapes_are_checked_with_checked_arithmetic() {
         assert!(one_line(e).contains("2^25"));
     }
 }
+
+/// Finding 9: the cells models are finite up to the edge of the coordinate range (their
+/// fractal texture was read at an offset that could leave it: NaN at y = 4503599627000000).
+#[test]
+fn cells_are_finite_up_to_the_coordinate_limit() {
+    use surftile::Surface;
+    let edge = surftile::stream::MAX_COORDINATE;
+    for preset in ["cells-convex", "cells-concave"] {
+        let s = surftile::open(preset).unwrap().surface(0).unwrap();
+        for k in 0..200 {
+            let t = k as f64 * 1.9e6 + 0.25;
+            for (x, y) in [
+                (0.0, edge - 1.0 - t),
+                (edge - 1.0 - t, 0.0),
+                (-(edge - 1.0 - t), 17.5),
+                (3.0, -(edge - 1.0 - t)),
+            ] {
+                assert!(s.height(x, y).is_finite(), "{preset} at ({x}, {y})");
+            }
+        }
+        assert!(s.height(0.0, 4503599627000000.0).is_finite(), "{preset}");
+    }
+}

@@ -333,7 +333,7 @@ impl VoronoiSurface {
                 Some(f) => {
                     // An integer offset keeps the fractal on its own lattice: the
                     // region reads an unrelated, equally lazy patch of it.
-                    let (ox, oy) = self.fractal_offset(n.id);
+                    let (ox, oy) = self.fractal_offset(n);
                     f.height(x + ox, y + oy) as f64
                 }
                 None => 0.0,
@@ -393,7 +393,7 @@ impl VoronoiSurface {
             }
             RegionTexture::Fractal { .. } => {
                 if let Some(f) = &self.fractal {
-                    let (ox, oy) = self.fractal_offset(n.id);
+                    let (ox, oy) = self.fractal_offset(n);
                     let (px, py) = (x + ox, y + oy);
                     g[0] += 0.5 * (f.height(px + 1.0, py) - f.height(px - 1.0, py)) as f64;
                     g[1] += 0.5 * (f.height(px, py + 1.0) - f.height(px, py - 1.0)) as f64;
@@ -403,11 +403,21 @@ impl VoronoiSurface {
         g
     }
 
-    /// The integer offset at which region `id` reads the fractal texture.
-    fn fractal_offset(&self, id: (i64, i64, u32)) -> (f64, f64) {
+    /// The integer offset at which region `n` reads the fractal texture: hashed
+    /// magnitudes below 2²⁷, each signed toward the origin from the region's centre, so
+    /// that the read point stays within the coordinate range wherever the region lies
+    /// (an offset away from the origin read NaN within 2²⁷ px of ±2⁵²).
+    fn fractal_offset(&self, n: &Nearest) -> (f64, f64) {
+        let id = n.id;
         let o = hash_cell(self.seed ^ id.2, id.0, id.1, 0xF4AC);
-        let shift = |w: u32| ((w >> 4) as i64 - (1 << 27)) as f64;
-        (shift(o[0]), shift(o[1]))
+        let toward_origin = |w: u32, centre: f64| {
+            let magnitude = (w >> 5) as f64;
+            if centre > 0.0 { -magnitude } else { magnitude }
+        };
+        (
+            toward_origin(o[0], n.centre.0),
+            toward_origin(o[1], n.centre.1),
+        )
     }
 
     /// φ of a region's texture, uniform in [0, 2π).
