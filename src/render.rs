@@ -180,6 +180,17 @@ pub fn render_imperfect<S: Surface>(
 ) -> Result<()> {
     let format = Format::from_path(out)?;
     outputs.validate()?;
+    let mut named = vec![("out", out)];
+    for (name, path) in [
+        ("mask", outputs.mask),
+        ("tendency", outputs.tendency),
+        ("colour", outputs.colour),
+    ] {
+        if let Some(p) = path {
+            named.push((name, p));
+        }
+    }
+    crate::io::Staged::distinct(&named)?;
     if let Some(o) = shading {
         o.validate()?;
         if format != Format::Png {
@@ -241,9 +252,15 @@ pub fn render_imperfect<S: Surface>(
     }
     let (gw, w, h) = (grown.width, region.width, region.height);
     let ids = crop(&all.layers, gw, region, pad);
+    // Every output appears, or none: each is staged, and all are renamed at the end.
+    let mut staged = crate::io::Staged::new();
     if shading.is_none() {
         let raster = Raster::from_vec(w, h, 1, crop(&all.heights, gw, region, pad))?;
-        write_heights(out, &raster, spacing_um.map(|s| s * region.step))?;
+        write_heights(
+            &staged.path(out),
+            &raster,
+            spacing_um.map(|s| s * region.step),
+        )?;
     }
     if shading.is_some() || outputs.colour.is_some() {
         let o = shading.copied().unwrap_or_default();
@@ -254,20 +271,20 @@ pub fn render_imperfect<S: Surface>(
         let heights = std::mem::take(&mut all.heights);
         let light = shade(&Raster::from_vec(gw, grown.height, 1, heights)?, &options);
         if shading.is_some() {
-            write_png8(out, w, h, 1, &light)?;
+            write_png8(&staged.path(out), w, h, 1, &light)?;
         }
         if let Some(path) = outputs.colour {
             let pattern = crop(&all.pattern, gw, region, pad);
             let rgb = layer.config().colour_image(&ids, &pattern, &light);
-            write_png8(path, w, h, 3, &rgb)?;
+            write_png8(&staged.path(path), w, h, 3, &rgb)?;
         }
     }
     if let Some(m) = outputs.mask {
-        write_png8(m, w, h, 1, &ids)?;
+        write_png8(&staged.path(m), w, h, 1, &ids)?;
     }
     if let Some(t) = outputs.tendency {
         let raster = Raster::from_vec(w, h, 1, crop(&all.tendency, gw, region, pad))?;
-        write_heights(t, &raster, None)?;
+        write_heights(&staged.path(t), &raster, None)?;
     }
-    Ok(())
+    staged.commit()
 }

@@ -183,3 +183,90 @@ fn cells_are_finite_up_to_the_coordinate_limit() {
         assert!(s.height(0.0, 4503599627000000.0).is_finite(), "{preset}");
     }
 }
+
+/// Finding 11 (names): a legal 254-byte output name is written (its temporary name used to
+/// pass 255 bytes), and no temporary file is left beside it.
+#[test]
+fn long_output_names_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = format!("{}.npy", "é".repeat(125));
+    assert_eq!(name.len(), 254);
+    let r = surftile::Raster::from_vec(4, 4, 1, vec![0.5; 16]).unwrap();
+    let path = dir.path().join(&name);
+    surftile::io::write_heights(&path, &r, None).unwrap();
+    let back = read_image(&path, &ReadOptions::default()).unwrap().raster;
+    assert_eq!(back.data, r.data);
+    let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(files.len(), 1, "a temporary file was left");
+}
+
+/// Finding 11 (outputs): an imperfect render whose later output cannot be written
+/// leaves none of its outputs behind, and two outputs on one path are refused before
+/// any work.
+#[test]
+fn imperfect_renders_write_all_their_outputs_or_none() {
+    use surftile::imperfect::{Imperfect, ImperfectConfig};
+    use surftile::render::{LayerOutputs, render_imperfect};
+    let dir = tempfile::tempdir().unwrap();
+    let (config, base) = ImperfectConfig::load("peeling".as_ref()).unwrap();
+    let surface = surftile::open("cells-convex").unwrap().surface(1).unwrap();
+    let layer = Imperfect::new(surface, &config, base.as_deref(), 1).unwrap();
+    let region = surftile::Region::new(0.0, 0.0, 48, 32);
+    let out = dir.path().join("h.npy");
+    let mask = dir.path().join("m.png");
+    // The tendency's folder does not exist: the last write fails.
+    let missing = dir.path().join("no-such-folder").join("t.npy");
+    let e = render_imperfect(
+        &layer,
+        &region,
+        &out,
+        None,
+        None,
+        LayerOutputs {
+            mask: Some(&mask),
+            tendency: Some(&missing),
+            colour: None,
+        },
+        &mut |_| {},
+    )
+    .unwrap_err();
+    one_line(e);
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n != "no-such-folder")
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+    // The same path twice.
+    let e = render_imperfect(
+        &layer,
+        &region,
+        &mask,
+        None,
+        None,
+        LayerOutputs {
+            mask: Some(&mask),
+            tendency: None,
+            colour: None,
+        },
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(one_line(e).contains("other than"));
+    // And a good render writes both.
+    render_imperfect(
+        &layer,
+        &region,
+        &out,
+        None,
+        None,
+        LayerOutputs {
+            mask: Some(&mask),
+            tendency: None,
+            colour: None,
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    assert!(out.exists() && mask.exists());
+}

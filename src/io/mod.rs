@@ -182,7 +182,7 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
 ) -> Result<()> {
-    let tmp = temp_sibling(path);
+    let tmp = temp_sibling(path, &format!(".part-{}", std::process::id()));
     let result = (|| {
         let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
         let mut w = BufWriter::new(file);
@@ -199,12 +199,88 @@ pub fn write_atomically(
     result
 }
 
-fn temp_sibling(path: &Path) -> PathBuf {
+/// Outputs that appear together or not at all: each is written (atomically) under a
+/// staged name beside its final one, and [`Staged::commit`] renames them all; dropped
+/// without a commit (an error on the way), the staged files are removed. So a command
+/// with several outputs never leaves some of them behind.
+#[derive(Debug, Default)]
+pub struct Staged {
+    moves: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Staged {
+    /// Nothing staged yet.
+    pub fn new() -> Staged {
+        Staged::default()
+    }
+
+    /// Checks that `paths` name different files (as absolute paths), so that no output
+    /// silently overwrites another; `names` says which option each came from.
+    pub fn distinct(paths: &[(&str, &Path)]) -> Result<()> {
+        for (i, (a_name, a)) in paths.iter().enumerate() {
+            for (b_name, b) in &paths[..i] {
+                let same = std::path::absolute(a).ok() == std::path::absolute(b).ok();
+                if same {
+                    return Err(Error::param(
+                        *a_name,
+                        a.display(),
+                        format!("a file other than the {b_name} output"),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Where to write the output that will become `path`.
+    pub fn path(&mut self, path: &Path) -> PathBuf {
+        // The staged name keeps the extension: the writers choose the format by it.
+        let ext = path
+            .extension()
+            .map(|e| format!(".{}", e.to_string_lossy()))
+            .unwrap_or_default();
+        let staged = temp_sibling(path, &format!(".staged-{}{ext}", std::process::id()));
+        self.moves.push((staged.clone(), path.to_path_buf()));
+        staged
+    }
+
+    /// Renames every staged output to its final name.
+    pub fn commit(mut self) -> Result<()> {
+        for (staged, path) in std::mem::take(&mut self.moves) {
+            std::fs::rename(&staged, &path).map_err(|e| Error::io(&path, e))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        for (staged, _) in &self.moves {
+            let _ = std::fs::remove_file(staged);
+        }
+    }
+}
+
+/// A temporary name beside `path`: `.NAME` then `suffix` (e.g. `.part-PID`), or, where
+/// that would pass the 255-byte limit of a file name, NAME's start and a checksum of the
+/// whole name (so a legal 254-byte name still gets a legal temporary one).
+fn temp_sibling(path: &Path, suffix: &str) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.part-{}", std::process::id()))
+    let short = format!(".{name}{suffix}");
+    if short.len() <= 255 {
+        return path.with_file_name(short);
+    }
+    let tag = format!("~{:08x}", crc32fast::hash(name.as_bytes()));
+    let mut keep = 254usize
+        .saturating_sub(tag.len() + suffix.len())
+        .min(name.len());
+    while !name.is_char_boundary(keep) {
+        keep -= 1;
+    }
+    path.with_file_name(format!(".{}{tag}{suffix}", &name[..keep]))
 }
 
 /// Drops a trailing alpha channel: 2 → 1 and 4 → 3 channels.
