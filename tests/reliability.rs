@@ -270,3 +270,22 @@ fn imperfect_renders_write_all_their_outputs_or_none() {
     .unwrap();
     assert!(out.exists() && mask.exists());
 }
+
+/// Finding 11 (extensions): PNG bytes go only to a `.png` name (`lattice --plot p.npy`
+/// wrote PNG bytes), and a bank never to an image's name (`bake --out b.png`).
+#[test]
+fn outputs_match_their_extensions() {
+    let dir = tempfile::tempdir().unwrap();
+    let npy = dir.path().join("p.npy");
+    let e = surftile::io::write_png8(&npy, 2, 2, 1, &[0, 1, 2, 3]).unwrap_err();
+    assert!(one_line(e).contains(".png"));
+    assert!(!npy.exists());
+    let bank = Bank::read(&common::repo("tests/data/golden-v1.bank")).unwrap();
+    for name in ["b.png", "b.tif", "b.npy"] {
+        let path = dir.path().join(name);
+        assert!(one_line(bank.write(&path).unwrap_err()).contains("bank"));
+        assert!(!path.exists());
+    }
+    bank.write(&dir.path().join("b.bank")).unwrap();
+    bank.write(&dir.path().join("plain")).unwrap();
+}

@@ -789,8 +789,17 @@ impl Bank {
         Bank::from_bytes(&bytes, &path.display().to_string())
     }
 
-    /// Writes the bank atomically (temporary file, then rename).
+    /// Writes the bank atomically (temporary file, then rename). A name with an image's
+    /// extension (`.png`, `.tif`, `.npy`, …) is refused: a bank there would pass for an
+    /// image.
     pub fn write(&self, path: &Path) -> Result<()> {
+        if crate::io::Format::from_path(path).is_ok() {
+            return Err(Error::param(
+                "bank",
+                path.display(),
+                "a bank file name (e.g. .bank), not an image's",
+            ));
+        }
         let bytes = self.to_bytes()?;
         crate::io::write_atomically(path, |w| {
             w.write_all(&bytes).map_err(|e| Error::io(path, e))

@@ -138,6 +138,13 @@ pub fn write_png8(
     channels: usize,
     pixels: &[u8],
 ) -> Result<()> {
+    if super::Format::from_path(path).ok() != Some(super::Format::Png) {
+        return Err(Error::param(
+            "output",
+            path.display(),
+            "a .png file (this is an 8-bit PNG image)",
+        ));
+    }
     let color = match channels {
         3 => ColorType::Rgb,
         4 => ColorType::Rgba,

@@ -679,8 +679,17 @@ impl MillingConfig {
     }
 
     /// The TOML text of this configuration (every key, defaults included).
-    pub fn to_toml(&self) -> String {
-        toml::to_string(self).unwrap_or_default()
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string(self).map_err(|e| {
+            let e = e.to_string();
+            Error::decode(
+                "milling configuration",
+                format!(
+                    "cannot be written as TOML ({})",
+                    e.lines().next().unwrap_or("")
+                ),
+            )
+        })
     }
 }
 
@@ -742,7 +751,7 @@ mod tests {
         let c = MillingConfig::from_toml("", "empty").unwrap();
         assert_eq!(c, MillingConfig::default());
         // And a written configuration reads back as itself.
-        let again = MillingConfig::from_toml(&c.to_toml(), "again").unwrap();
+        let again = MillingConfig::from_toml(&c.to_toml().unwrap(), "again").unwrap();
         assert_eq!(again, c);
     }
 }
