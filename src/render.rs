@@ -31,9 +31,13 @@ pub fn render_region(
     region: &Region,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Raster> {
-    region.validate()?;
-    let c = surface.channels();
-    let samples = region
+    check_render_size(region)?;
+    fill_region(surface, region, progress)
+}
+
+/// Refuses a region over [`MAX_RENDER_SAMPLES`], naming the limit.
+fn check_render_size(region: &Region) -> Result<usize> {
+    region
         .width
         .checked_mul(region.height)
         .filter(|&n| n <= MAX_RENDER_SAMPLES)
@@ -42,7 +46,18 @@ pub fn render_region(
                 "a {}×{} region is over the limit of {MAX_RENDER_SAMPLES} samples per render; render it in tiles",
                 region.width, region.height
             ))
-        })?;
+        })
+}
+
+/// [`render_region`] without the size check: for a checked region grown by a margin.
+fn fill_region(
+    surface: &dyn Surface,
+    region: &Region,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Raster> {
+    region.validate()?;
+    let c = surface.channels();
+    let samples = region.width * region.height;
     let mut data = vec![0.0f32; samples * c];
     let row_len = region.width * c;
     for (s, strip) in data.chunks_mut(STRIP_ROWS * row_len).enumerate() {
@@ -103,7 +118,9 @@ pub fn render_to_file(
             let slopes: Vec<[f32; 2]> = g.data.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
             shade_slopes(&slopes, &options)
         } else {
-            // One sample of margin on every side for the central differences.
+            // One sample of margin on every side for the central differences: the limit
+            // applies to the region asked for, not to its margin.
+            check_render_size(region)?;
             let grown = Region {
                 col0: region.col0 - 1,
                 row0: region.row0 - 1,
@@ -111,7 +128,7 @@ pub fn render_to_file(
                 height: region.height + 2,
                 ..*region
             };
-            let heights = render_region(surface, &grown, progress)?.channel(0);
+            let heights = fill_region(surface, &grown, progress)?.channel(0);
             shade(&heights, &options)
         };
         return write_png8(out, region.width, region.height, 1, &pixels);
