@@ -215,7 +215,7 @@ impl Staged {
     }
 
     /// Checks that `paths` name different files (as absolute paths), so that no output
-    /// silently overwrites another; `names` says which option each came from.
+    /// silently overwrites another; each path comes with the name of its option.
     pub fn distinct(paths: &[(&str, &Path)]) -> Result<()> {
         for (i, (a_name, a)) in paths.iter().enumerate() {
             for (b_name, b) in &paths[..i] {
@@ -244,10 +244,17 @@ impl Staged {
         staged
     }
 
-    /// Renames every staged output to its final name.
+    /// Renames every staged output to its final name; if a rename fails, the staged
+    /// outputs not yet renamed are removed.
     pub fn commit(mut self) -> Result<()> {
-        for (staged, path) in std::mem::take(&mut self.moves) {
-            std::fs::rename(&staged, &path).map_err(|e| Error::io(&path, e))?;
+        let moves = std::mem::take(&mut self.moves);
+        for (k, (staged, path)) in moves.iter().enumerate() {
+            if let Err(e) = std::fs::rename(staged, path) {
+                for (rest, _) in &moves[k..] {
+                    let _ = std::fs::remove_file(rest);
+                }
+                return Err(Error::io(path, e));
+            }
         }
         Ok(())
     }
