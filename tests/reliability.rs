@@ -289,3 +289,23 @@ fn outputs_match_their_extensions() {
     bank.write(&dir.path().join("b.bank")).unwrap();
     bank.write(&dir.path().join("plain")).unwrap();
 }
+
+/// Finding 11 (absurd values): an exemplar of ±3·10³⁸ is refused by the preprocessing,
+/// naming the file and the limit (the error used to come from the bank it made).
+#[test]
+fn absurd_exemplar_values_are_refused_as_the_exemplars_fault() {
+    let data: Vec<f32> = (0..64 * 64)
+        .map(|i| if i % 2 == 0 { 3e38 } else { -3e38 })
+        .collect();
+    let image = surftile::io::ImageFile {
+        raster: surftile::Raster::from_vec(64, 64, 1, data).unwrap(),
+        spacing_um: None,
+    };
+    let e = Baker::builder()
+        .build()
+        .unwrap()
+        .bake(&image, "huge.npy", &mut |_| {})
+        .unwrap_err();
+    let e = one_line(e);
+    assert!(e.starts_with("huge.npy") && e.contains("1e30"), "{e}");
+}

@@ -12,6 +12,10 @@ use level::level_plane;
 use missing::fill_missing;
 use resample::{DownsampleFilter, downsample};
 
+/// Largest magnitude a map's values may have (10³⁰): far beyond any height or colour,
+/// and far enough below f32's 3.4·10³⁸ that the analysis' sums and tables stay finite.
+pub const MAX_VALUE: f32 = 1e30;
+
 /// Plane levelling before analysis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
@@ -76,6 +80,15 @@ impl Prep {
         }
         if r.data.iter().any(|v| v.is_infinite()) {
             return Err(Error::decode(what, "the map holds infinite values"));
+        }
+        let largest = r.data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        if largest > MAX_VALUE {
+            return Err(Error::decode(
+                what,
+                format!(
+                    "values up to {largest:e}; expected magnitudes up to {MAX_VALUE:e} (the analysis sums and squares them in f32 tables)"
+                ),
+            ));
         }
         if self.leveling.levels(r.channels) {
             level_plane(&mut r);
