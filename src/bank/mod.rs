@@ -624,6 +624,16 @@ impl Bank {
     fn validate_model_layout(&self, what: &str) -> Result<()> {
         let h = &self.header;
         let bad = |m: String| Err(Error::bank(what, m));
+        // RSGF and synth banks hold their exemplar as their one tile.
+        let [w, ht] = h.tile_size;
+        if matches!(h.record, Record::Rsgf(_) | Record::Synth(_))
+            && (h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22)
+        {
+            return bad(format!(
+                "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
+                h.tiles
+            ));
+        }
         if h.levels.is_empty() || h.levels.len() > 14 {
             return bad(format!("{} levels; expected 1 to 14", h.levels.len()));
         }

@@ -834,13 +834,8 @@ pub fn check_bank(bank: &Bank, what: &str) -> Result<SynthParams> {
     };
     bank.validate(what)?;
     let params: SynthParams = BankHeader::decode(section, "synth", what)?;
+    // One tile, the exemplar, of 1 to 2^22 pixels: checked by `Bank::validate`.
     let [w, ht] = h.tile_size;
-    if h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22 {
-        return bad(format!(
-            "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",
-            h.tiles
-        ));
-    }
     params
         .validate()
         .and_then(|_| params.check_exemplar(w, ht, h.channels))
