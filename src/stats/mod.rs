@@ -443,11 +443,27 @@ pub fn wasserstein1_sorted(a: &[f64], b: &[f64]) -> f64 {
     acc
 }
 
+/// Where the windows of side `n` start along an axis of `len` pixels (Welch's method):
+/// the first flush with one edge, the last flush with the other, evenly spaced at most
+/// n/2 apart (50% overlap), and at most `per_axis` of them. Every pixel of a map whose
+/// side is not a multiple of `n` counts (a 127 × 80 exemplar was measured on its left
+/// 80 × 80 square alone), and a large map is sampled across its whole extent.
+fn window_starts(len: usize, n: usize, per_axis: usize) -> Vec<usize> {
+    if n == 0 || len < n || per_axis == 0 {
+        return Vec::new();
+    }
+    let k = ((len - n).div_ceil((n / 2).max(1)) + 1).min(per_axis);
+    if k == 1 {
+        return vec![(len - n) / 2];
+    }
+    (0..k).map(|i| i * (len - n) / (k - 1)).collect()
+}
+
 /// Radially averaged power spectrum of square `n × n` windows of `r` (mean removed, Hann
-/// window), averaged over up to `max_windows` non-overlapping windows. Returns the mean
-/// power per integer radius 0..=n/2 and the number of frequencies per radius in one
-/// window.
-fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>) {
+/// window), averaged over the windows of [`window_starts`] (up to `per_axis` per axis).
+/// Returns the mean power per integer radius 0..=n/2 and the number of frequencies per
+/// radius in one window.
+fn radial_psd(r: &Raster, n: usize, per_axis: usize) -> (Vec<f64>, Vec<usize>) {
     let hann: Vec<f64> = (0..n).map(|i| crate::fft::hann(i, n)).collect();
     // Half spectra (real FFTs): each column that stands for its mirror image too counts
     // twice. Each frequency's radius bin and weight, once for every window.
@@ -474,11 +490,9 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
         }
     }
     let mut windows = 0;
-    'outer: for wy in 0..r.height / n {
-        for wx in 0..r.width / n {
-            if windows == max_windows {
-                break 'outer;
-            }
+    let xs = window_starts(r.width, n, per_axis);
+    for &wy in &window_starts(r.height, n, per_axis) {
+        for &wx in &xs {
             windows += 1;
             let spec = plan.forward(&tapered_window(r, (wx, wy), &hann));
             for (row, bins) in spec.chunks_exact(hw).zip(bin_of.chunks_exact(hw)) {
@@ -500,10 +514,10 @@ fn radial_psd(r: &Raster, n: usize, max_windows: usize) -> (Vec<f64>, Vec<usize>
 
 /// Window (wx, wy) of `r`'s grid of `n × n` windows (n = `hann.len()`), its mean
 /// removed and tapered by the separable window `hann`.
-fn tapered_window(r: &Raster, (wx, wy): (usize, usize), hann: &[f64]) -> Vec<f64> {
+fn tapered_window(r: &Raster, (x0, y0): (usize, usize), hann: &[f64]) -> Vec<f64> {
     let n = hann.len();
     let mut win: Vec<f64> = (0..n * n)
-        .map(|i| r.get(wx * n + i % n, wy * n + i / n, 0) as f64)
+        .map(|i| r.get(x0 + i % n, y0 + i / n, 0) as f64)
         .collect();
     let m = win.iter().sum::<f64>() / (n * n) as f64;
     for (i, v) in win.iter_mut().enumerate() {
@@ -512,13 +526,13 @@ fn tapered_window(r: &Raster, (wx, wy): (usize, usize), hann: &[f64]) -> Vec<f64
     win
 }
 
-/// Log–log slope of the radially averaged power spectrum of `r` (mean over up to 64
-/// square `window × window` windows, Hann-tapered), fitted by least squares over the
+/// Log–log slope of the radially averaged power spectrum of `r` (mean over up to 8 × 8
+/// square `window × window` windows, Hann-tapered, [`window_starts`]), fitted by least squares over the
 /// integer radii in [k_lo, k_hi] (cycles per window), each radius weighted equally in
 /// log k by binning into 24 log-spaced bins. A surface whose spectrum falls as k^−β
 /// gives −β.
 pub fn psd_slope(r: &Raster, window: usize, (k_lo, k_hi): (f64, f64)) -> f64 {
-    let (power, _) = radial_psd(r, window, 64);
+    let (power, _) = radial_psd(r, window, 8);
     let (lo, hi) = (k_lo.max(1.0).ln(), k_hi.min((window / 2) as f64).ln());
     let nb = 24;
     let mut bins = vec![(0.0f64, 0.0f64, 0usize); nb];
@@ -587,15 +601,15 @@ pub fn fidelity_bars(exemplar: &Raster) -> FidelityBars {
 }
 
 /// PSD error (DESIGN.md): on equal-size square windows of a and b (side = the smallest
-/// side of either), radially average the power spectra, merge low-frequency bins until
+/// side of either; Welch's 50%-overlapping windows, [`window_starts`]), radially average the power spectra, merge low-frequency bins until
 /// each holds ≥ 32 samples, and take the RMS over bins of log10 P_b − log10 P_a.
 pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
     let n = a.width.min(a.height).min(b.width).min(b.height);
     if n < 8 {
         return f64::NAN;
     }
-    let (pa, counts) = radial_psd(a, n, 64);
-    let (pb, _) = radial_psd(b, n, 64);
+    let (pa, counts) = radial_psd(a, n, 8);
+    let (pb, _) = radial_psd(b, n, 8);
     let sum =
         |p: &[f64]| -> Vec<f64> { p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect() };
     log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
@@ -873,6 +887,18 @@ mod tests {
         assert_eq!((row.w1, row.psd), (W1_BAR, PSD_ERROR_BAR));
     }
 
+    #[test]
+    fn psd_windows_cover_the_map_half_a_window_apart() {
+        // Known answers: flush with both edges, evenly spaced, at most n/2 apart.
+        assert_eq!(window_starts(70, 24, 8), vec![0, 11, 23, 34, 46]);
+        assert_eq!(window_starts(127, 80, 8), vec![0, 23, 47]);
+        assert_eq!(window_starts(80, 80, 8), vec![0]);
+        assert_eq!(window_starts(100, 50, 8), vec![0, 25, 50]);
+        // Capped, still spanning the map: 1024 with n = 80 would want 25.
+        assert_eq!(window_starts(1024, 80, 8), vec![0, 134, 269, 404, 539, 674, 809, 944]);
+        assert!(window_starts(79, 80, 8).is_empty());
+    }
+
     /// radial_psd through half spectra against a slow twin that bins every frequency of
     /// a full complex spectrum, for even and odd window sides and several windows.
     #[test]
@@ -884,14 +910,14 @@ mod tests {
                 + ((x * 7919 + y * 31) % 17) as f64 * 0.03
         });
         for n in [24usize, 21] {
-            let (power, count) = radial_psd(&r, n, 64);
+            let (power, count) = radial_psd(&r, n, 8);
             let hann: Vec<f64> = (0..n).map(|i| crate::fft::hann(i, n)).collect();
             let mut plan = Fft2::new(n, n);
             let bins = n / 2 + 1;
             let (mut p_full, mut c_full) = (vec![0.0; bins], vec![0usize; bins]);
             let mut windows = 0;
-            for wy in 0..r.height / n {
-                for wx in 0..r.width / n {
+            for &wy in &window_starts(r.height, n, 8) {
+                for &wx in &window_starts(r.width, n, 8) {
                     windows += 1;
                     let spec = forward_real(&mut plan, &tapered_window(&r, (wx, wy), &hann));
                     for ky in 0..n {
