@@ -130,6 +130,46 @@ impl Error {
     }
 }
 
+/// Largest magnitude any real-valued parameter of a configuration or bank may have
+/// (10³⁰, like [`crate::prep::MAX_VALUE`] for a map's values): far beyond any length,
+/// height or weight a surface needs, and far enough below f64's and f32's limits that
+/// the products and squares a model forms stay finite. Every real parameter read from a
+/// file goes through [`finite_param`], [`positive_param`] or [`non_negative_param`], so a
+/// checksum-correct file with 10³⁰⁰ in it is refused by name instead of rendering ±inf.
+pub const MAX_PARAMETER: f64 = 1e30;
+
+/// `v` if it is finite and at most [`MAX_PARAMETER`] in magnitude; otherwise the error
+/// naming `key`, with `expected` saying what it should be.
+pub fn finite_param(key: &str, v: f64, expected: &str) -> Result<f64> {
+    if v.is_finite() && v.abs() <= MAX_PARAMETER {
+        Ok(v)
+    } else {
+        Err(Error::param(key, short(v), bounded(expected)))
+    }
+}
+
+/// `v` if it is positive, finite and within [1/MAX_PARAMETER, MAX_PARAMETER].
+pub fn positive_param(key: &str, v: f64, expected: &str) -> Result<f64> {
+    if v.is_finite() && (1.0 / MAX_PARAMETER..=MAX_PARAMETER).contains(&v) {
+        Ok(v)
+    } else {
+        Err(Error::param(key, short(v), bounded(expected)))
+    }
+}
+
+/// `v` if it is 0, or within [1/MAX_PARAMETER, MAX_PARAMETER].
+pub fn non_negative_param(key: &str, v: f64, expected: &str) -> Result<f64> {
+    if v == 0.0 {
+        Ok(0.0)
+    } else {
+        positive_param(key, v, expected)
+    }
+}
+
+fn bounded(expected: &str) -> String {
+    format!("{expected}, within 1e-30 to 1e30 in magnitude")
+}
+
 /// A number for an error message: as typed for everyday magnitudes, in exponent form
 /// from 10¹⁵ up and under 10⁻⁶ (where `{}` would print every digit of 1e300).
 pub fn short(v: f64) -> String {

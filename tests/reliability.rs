@@ -309,3 +309,104 @@ fn absurd_exemplar_values_are_refused_as_the_exemplars_fault() {
     let e = one_line(e);
     assert!(e.starts_with("huge.npy") && e.contains("1e30"), "{e}");
 }
+
+/// Finding 11 (absurd values): every real parameter of a model, milling or imperfection
+/// file is bounded (`surftile::error::MAX_PARAMETER`, 10³⁰, or tighter where the model
+/// needs it), so a file with 10³⁰⁰ in it is refused by name instead of sampling ±inf.
+#[test]
+fn absurd_model_parameters_are_refused_by_name() {
+    use surftile::imperfect::ImperfectConfig;
+    use surftile::models::milling::MillingConfig;
+    use surftile::models::rugged::ModelConfig;
+    let text = |path: &str| std::fs::read_to_string(common::repo(path)).unwrap();
+    let swap = |path: &str, from: &str, to: &str| {
+        let t = text(path);
+        assert!(t.contains(from), "{path} has no '{from}'");
+        t.replacen(from, to, 1)
+    };
+    let cells = "tiles/models/cells-convex.toml";
+    let rock = "tiles/models/rock.toml";
+    for (t, key) in [
+        (
+            swap(cells, "density = 0.000244140625", "density = 1e-300"),
+            "density",
+        ),
+        (swap(cells, "radius = 1.5", "radius = 1e300"), "radius"),
+        (
+            swap(cells, "amplitude = 4.0", "amplitude = 1e308"),
+            "amplitude",
+        ),
+        (
+            swap(rock, "amplitude = 64.0", "amplitude = 1e308"),
+            "amplitude",
+        ),
+    ] {
+        let e = one_line(ModelConfig::from_toml(&t, "m.toml").unwrap_err());
+        assert!(
+            e.contains(&format!("`{key}`")) || e.contains(key),
+            "{key}: {e}"
+        );
+        // Density has its own range (centres 1 to 2³² px apart); the rest the common bound.
+        assert!(
+            e.contains("1e30") || e.contains("2³²"),
+            "the bound is named: {e}"
+        );
+    }
+    // Each model still opens with the values as shipped, and samples finite heights.
+    for path in [cells, rock] {
+        let m = ModelConfig::from_toml(&text(path), path).unwrap();
+        assert!(m.surface(1).unwrap().height(1.0e15, -3.5).is_finite());
+    }
+    let milling = "tiles/milling/parallel-d4-ae05.toml";
+    for (t, key) in [
+        (
+            swap(milling, "[tool]", "[noise]\namplitude_um = 1e300\n[tool]"),
+            "noise.amplitude_um",
+        ),
+        (
+            text(milling) + "\n[adapt]\nstd_um = 1e308\n",
+            "adapt.std_um",
+        ),
+        (
+            text(milling) + "\n[adapt]\nmean_um = -1e300\n",
+            "adapt.mean_um",
+        ),
+    ] {
+        let e = one_line(MillingConfig::from_toml(&t, "p.toml").unwrap_err());
+        assert!(e.contains(key), "{key}: {e}");
+    }
+    let peeling = "tiles/imperfect/peeling.toml";
+    for (t, key) in [
+        (swap(peeling, "age = 1.0", "age = 1e300"), "age"),
+        (
+            swap(peeling, "octaves = 5", "octaves = 5\nlacunarity = 1e300"),
+            "noise.lacunarity",
+        ),
+        (swap(peeling, "gamma = 0.35", "gamma = -1e300"), "gamma"),
+    ] {
+        let e = one_line(ImperfectConfig::from_toml(&t, "i.toml").unwrap_err());
+        assert!(e.contains(key), "{key}: {e}");
+    }
+}
+
+/// Deliver 2 (a bank's values pass the bake's bounds): a checksum-correct bank with a
+/// texel of 3·10³⁸ (finite in f32, beyond the 10³⁰ the bake accepts from a map) or a
+/// spacing of 10³⁰⁰ µm is refused on read, naming the bound.
+#[test]
+fn bank_values_are_held_to_the_bakes_bounds() {
+    let golden = std::fs::read(common::repo("tests/data/golden-v1.bank")).unwrap();
+    let header_len = u32::from_le_bytes(golden[12..16].try_into().unwrap()) as usize;
+    let mut huge_texel = golden.clone();
+    let at = 16 + header_len;
+    huge_texel[at..at + 4].copy_from_slice(&3.0e38f32.to_le_bytes());
+    let body = huge_texel.len() - 4;
+    let crc = crc32fast::hash(&huge_texel[..body]);
+    huge_texel[body..].copy_from_slice(&crc.to_le_bytes());
+    let huge_spacing = with_header(&golden, |h| h["spacing_um"] = 1e300.into());
+    for (bytes, needle) in [(huge_texel, "texels"), (huge_spacing, "spacing")] {
+        let e = one_line(Bank::from_bytes(&bytes, "b.bank").unwrap_err());
+        assert!(e.contains(needle) && e.contains("1e30"), "{e}");
+    }
+    // The untouched golden still reads.
+    Bank::from_bytes(&golden, "b.bank").unwrap();
+}

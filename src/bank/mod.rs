@@ -24,7 +24,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, MAX_PARAMETER, Result, positive_param};
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"SURFTILE";
@@ -556,9 +556,12 @@ impl Bank {
             ));
         }
         if let Some(s) = h.spacing_um
-            && !(s.is_finite() && s > 0.0)
+            && positive_param("spacing_um", s, "").is_err()
         {
-            return bad(format!("pixel spacing {s} µm; expected a positive number"));
+            return bad(format!(
+                "pixel spacing {} µm; expected a positive number within 1e-30 to 1e30",
+                crate::error::short(s)
+            ));
         }
         if self.texels.len() != h.levels.len() || self.luts.len() != h.levels.len() {
             return bad("level count differs between header and data".into());
@@ -589,10 +592,12 @@ impl Bank {
                     h.channels
                 ));
             }
-            if info.mean.iter().chain(&info.sigma).any(|v| !v.is_finite())
+            if info.mean.iter().chain(&info.sigma).any(|v| !in_range(*v))
                 || info.sigma.iter().any(|&s| s < 0.0)
             {
-                return bad(format!("level {l} statistics are not finite"));
+                return bad(format!(
+                    "level {l} statistics are not finite within ±1e30 (σ ≥ 0)"
+                ));
             }
             if self.texels[l].len() != h.tiles * expected[0] * expected[1] * h.channels {
                 return bad(format!("level {l} holds {} texels", self.texels[l].len()));
@@ -603,13 +608,15 @@ impl Bank {
                     self.luts[l].len()
                 ));
             }
-            if self.texels[l].iter().any(|v| !v.is_finite()) {
-                return bad(format!("level {l} has non-finite texels"));
+            if !values_in_range(&self.texels[l]) {
+                return bad(format!(
+                    "level {l} has texels that are not finite within ±1e30"
+                ));
             }
             for table in self.luts[l].chunks_exact(lut_size.max(1)) {
-                if table.iter().any(|v| !v.is_finite()) || table.windows(2).any(|p| p[1] < p[0]) {
+                if !values_in_range(table) || table.windows(2).any(|p| p[1] < p[0]) {
                     return bad(format!(
-                        "level {l} T⁻¹ table is not finite and non-decreasing"
+                        "level {l} T⁻¹ table is not finite within ±1e30 and non-decreasing"
                     ));
                 }
             }
@@ -652,13 +659,14 @@ impl Bank {
                     self.luts[l].len()
                 ));
             }
-            if self.texels[l]
-                .iter()
-                .chain(&self.luts[l])
-                .any(|v| !v.is_finite())
-            {
-                return bad(format!("level {l} has non-finite values"));
+            if !values_in_range(&self.texels[l]) || !values_in_range(&self.luts[l]) {
+                return bad(format!(
+                    "level {l} has values that are not finite within ±1e30"
+                ));
             }
+        }
+        if !self.extra.iter().all(|b| values_in_range(b)) {
+            return bad("synthesis tables hold values that are not finite within ±1e30".into());
         }
         match &h.record {
             Record::Synth(_)
@@ -674,9 +682,12 @@ impl Bank {
             _ => {}
         }
         if let Some(s) = h.spacing_um
-            && !(s.is_finite() && s > 0.0)
+            && positive_param("spacing_um", s, "").is_err()
         {
-            return bad(format!("pixel spacing {s} µm; expected a positive number"));
+            return bad(format!(
+                "pixel spacing {} µm; expected a positive number within 1e-30 to 1e30",
+                crate::error::short(s)
+            ));
         }
         Ok(())
     }
@@ -845,3 +856,17 @@ impl Bank {
 compile_error!(
     "the bank format is little-endian and is cast with bytemuck; big-endian targets need byte swapping"
 );
+
+/// A header number as the bake would have written it: finite, within ±10³⁰
+/// ([`MAX_PARAMETER`], the bound every configuration's real parameters have).
+fn in_range(v: f64) -> bool {
+    v.is_finite() && v.abs() <= MAX_PARAMETER
+}
+
+/// Stored values as the bake would have written them: finite, within ±10³⁰ (the bake
+/// refuses maps beyond [`crate::prep::MAX_VALUE`], the same bound), so a checksum-correct
+/// bank cannot carry values whose blends and interpolations overflow.
+fn values_in_range(v: &[f32]) -> bool {
+    v.iter()
+        .all(|x| x.is_finite() && x.abs() <= MAX_PARAMETER as f32)
+}

@@ -23,7 +23,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, finite_param, non_negative_param, positive_param};
 use crate::stream::{OriginSample, Region, Surface, default_threads, fill_parallel, for_bands};
 use geometry::{Exposure, Window, local_shape, ray_pattern};
 use noise::NoiseParams;
@@ -175,17 +175,15 @@ impl ImperfectConfig {
         )
     }
 
-    /// Checks every parameter, naming the first one out of range (sources are checked
-    /// when the layer is built, where their files and the surface are known).
+    /// Checks every parameter, naming the first one out of range (a projector's mask
+    /// file is read when the layer is built, where its folder is known).
     pub fn validate(&self) -> Result<()> {
         let g = &self.geometry;
-        if !(g.half_exposure_px.is_finite() && g.half_exposure_px > 0.0) {
-            return Err(Error::param(
-                "geometry.half_exposure_px",
-                g.half_exposure_px,
-                "d_h > 0 pixels: the half-exposure distance of ω(d) = d/(d_h + d) (eq. 4)",
-            ));
-        }
+        positive_param(
+            "geometry.half_exposure_px",
+            g.half_exposure_px,
+            "d_h > 0 pixels: the half-exposure distance of ω(d) = d/(d_h + d) (eq. 4)",
+        )?;
         if !(1..=1024).contains(&g.rays) {
             return Err(Error::param("geometry.rays", g.rays, "1 to 1024 rays"));
         }
@@ -204,9 +202,7 @@ impl ImperfectConfig {
                 g.gaussian_curvature_weight,
             ),
         ] {
-            if !v.is_finite() {
-                return Err(Error::param(name, v, "a finite weight"));
-            }
+            finite_param(name, v, "a finite weight")?;
         }
         if !(g.curvature_scale_px.is_finite() && (1.0..=64.0).contains(&g.curvature_scale_px)) {
             return Err(Error::param(
@@ -215,21 +211,9 @@ impl ImperfectConfig {
                 "1 to 64 pixels",
             ));
         }
-        if !(self.age.is_finite() && self.age >= 0.0) {
-            return Err(Error::param(
-                "age",
-                self.age,
-                "a finite age ≥ 0 (it scales every γ)",
-            ));
-        }
-        if let Some(z) = self.z_scale
-            && !(z.is_finite() && z > 0.0)
-        {
-            return Err(Error::param(
-                "z_scale",
-                z,
-                "positive surface pixels per height unit",
-            ));
+        non_negative_param("age", self.age, "a finite age ≥ 0 (it scales every γ)")?;
+        if let Some(z) = self.z_scale {
+            positive_param("z_scale", z, "positive surface pixels per height unit")?;
         }
         if self.source.is_empty() {
             return Err(Error::param(
@@ -237,6 +221,9 @@ impl ImperfectConfig {
                 "none",
                 "at least one [[source]] (ambient, point, directional, spotlight or projector)",
             ));
+        }
+        for (i, c) in self.source.iter().enumerate() {
+            Source::check(c, i + 1)?;
         }
         self.noise.validate()?;
         let l = &self.layers;
@@ -272,16 +259,12 @@ impl ImperfectConfig {
                 format!("{depths_wanted} depth(s) for {:?}", self.pattern).to_lowercase(),
             ));
         }
-        if let Some(d) = l
-            .depths_sigma
-            .iter()
-            .find(|d| !(d.is_finite() && **d >= 0.0))
-        {
-            return Err(Error::param(
+        for &d in &l.depths_sigma {
+            non_negative_param(
                 "layers.depths_sigma",
                 d,
                 "finite depths ≥ 0, in σ of the surface heights",
-            ));
+            )?;
         }
         if !l.colours.is_empty() {
             // Peeling shows the colour of each layer laid bare (the object's and one per

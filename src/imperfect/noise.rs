@@ -65,24 +65,23 @@ impl NoiseParams {
     /// Checks every parameter, naming the first one out of range.
     pub fn validate(&self) -> crate::Result<()> {
         use crate::error::Error;
-        if !(self.scale_px.is_finite() && self.scale_px > 0.0) {
-            return Err(Error::param(
-                "pattern.scale_px",
-                self.scale_px,
-                "a positive noise scale in surface pixels",
-            ));
-        }
+        crate::error::positive_param(
+            "noise.scale_px",
+            self.scale_px,
+            "a positive noise scale in surface pixels",
+        )?;
         if !(1..=12).contains(&self.octaves) {
-            return Err(Error::param("pattern.octaves", self.octaves, "1 to 12"));
+            return Err(Error::param("noise.octaves", self.octaves, "1 to 12"));
         }
         if !(self.gain > 0.0 && self.gain < 1.0) {
-            return Err(Error::param("pattern.gain", self.gain, "a ratio in (0, 1)"));
+            return Err(Error::param("noise.gain", self.gain, "a ratio in (0, 1)"));
         }
-        if !(self.lacunarity.is_finite() && self.lacunarity > 1.0) {
+        // 64¹¹ · 2⁵² stays far inside f64: the finest octave's coordinates are finite.
+        if !(self.lacunarity.is_finite() && self.lacunarity > 1.0 && self.lacunarity <= 64.0) {
             return Err(Error::param(
-                "pattern.lacunarity",
+                "noise.lacunarity",
                 self.lacunarity,
-                "a frequency ratio above 1",
+                "a frequency ratio above 1, at most 64",
             ));
         }
         Ok(())

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, MAX_PARAMETER, Result, finite_param, positive_param};
 use crate::raster::Raster;
 
 /// Which form of eq. (1).
@@ -126,6 +126,28 @@ impl Source {
     /// Validates `c` (source number `index`, from 1, in messages); a mask path is read
     /// relative to `base`.
     pub fn new(c: &SourceConfig, index: usize, base: Option<&std::path::Path>) -> Result<Source> {
+        let mut s = Source::check(c, index)?;
+        if let (SourceKind::Projector, Some(path)) = (c.kind, c.mask.as_ref()) {
+            let path = match base {
+                Some(b) if path.is_relative() => b.join(path),
+                _ => path.clone(),
+            };
+            if !path.exists() {
+                return Err(Error::param(
+                    format!("source {index}: mask"),
+                    path.display(),
+                    "an existing PNG mask image (the file is missing)",
+                ));
+            }
+            s.mask = Some(Arc::new(crate::io::read_unit(&path)?.channel(0)));
+        }
+        Ok(s)
+    }
+
+    /// Checks every value of `c` that needs no file (a projector's mask is read by
+    /// [`Source::new`]): what [`crate::imperfect::ImperfectConfig::validate`] checks, so
+    /// a configuration is refused when it is read, not when the layer is built.
+    pub fn check(c: &SourceConfig, index: usize) -> Result<Source> {
         let name = |key: &str| format!("source {index}: {key}");
         let finite3 = |key: &str, v: Option<[f64; 3]>| -> Result<DVec3> {
             let v = v.ok_or_else(|| {
@@ -136,8 +158,12 @@ impl Source {
                 )
             })?;
             let d = DVec3::from_array(v);
-            if !d.is_finite() {
-                return Err(Error::param(name(key), format!("{v:?}"), "finite numbers"));
+            if !v.iter().all(|x| x.is_finite() && x.abs() <= MAX_PARAMETER) {
+                return Err(Error::param(
+                    name(key),
+                    format!("{v:?}"),
+                    "finite numbers, at most 1e30 in magnitude",
+                ));
             }
             Ok(d)
         };
@@ -152,21 +178,17 @@ impl Source {
             }
             Ok(d.normalize())
         };
-        if !c.gamma.is_finite() {
-            return Err(Error::param(name("gamma"), c.gamma, "a finite scaling γ"));
-        }
-        if !(c.eta.is_finite() && c.eta > 0.0) {
-            return Err(Error::param(
-                name("eta"),
-                c.eta,
-                "a positive falloff η (cosine exponent, or Gaussian σ in radians)",
-            ));
-        }
-        if !(c.distance_power.is_finite() && c.distance_power >= 0.0) {
+        finite_param(&name("gamma"), c.gamma, "a finite scaling γ")?;
+        positive_param(
+            &name("eta"),
+            c.eta,
+            "a positive falloff η (cosine exponent, or Gaussian σ in radians)",
+        )?;
+        if !(c.distance_power.is_finite() && (0.0..=16.0).contains(&c.distance_power)) {
             return Err(Error::param(
                 name("distance_power"),
                 c.distance_power,
-                "c ≥ 0 of the 1/ρᶜ falloff",
+                "c from 0 to 16 for the 1/ρᶜ falloff",
             ));
         }
         let mut s = Source {
@@ -187,9 +209,7 @@ impl Source {
         };
         match c.kind {
             SourceKind::Ambient => {
-                if !c.value.is_finite() {
-                    return Err(Error::param(name("value"), c.value, "a finite constant"));
-                }
+                finite_param(&name("value"), c.value, "a finite constant")?;
             }
             SourceKind::Directional => s.direction = unit("direction", c.direction)?,
             SourceKind::Point => s.position = finite3("position", c.position)?,
@@ -237,21 +257,13 @@ impl Source {
                     DVec3::X
                 };
                 s.up = s.right.cross(s.direction).normalize();
-                let path = c.mask.as_ref().ok_or_else(|| {
-                    Error::param(name("mask"), "missing", "a mask image (PNG) to project")
-                })?;
-                let path = match base {
-                    Some(b) if path.is_relative() => b.join(path),
-                    _ => path.clone(),
-                };
-                if !path.exists() {
+                if c.mask.is_none() {
                     return Err(Error::param(
                         name("mask"),
-                        path.display(),
-                        "an existing PNG mask image (the file is missing)",
+                        "missing",
+                        "a mask image (PNG) to project",
                     ));
                 }
-                s.mask = Some(Arc::new(crate::io::read_unit(&path)?.channel(0)));
             }
         }
         Ok(s)

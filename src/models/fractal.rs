@@ -31,7 +31,7 @@
 
 use std::ops::Range;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, positive_param};
 use crate::hash::{hash_tile_keyed, pcg4d};
 use crate::stream::{Region, Surface, fill_rows_by_sample, in_range};
 
@@ -110,13 +110,11 @@ impl FractalParams {
                 "1 to 24 levels (a coarsest lattice of 2 to 2²⁴ pixels)",
             ));
         }
-        if !(self.amplitude.is_finite() && self.amplitude > 0.0) {
-            return Err(Error::param(
-                "amplitude",
-                self.amplitude,
-                "a positive, finite displacement scale S⁽⁰⁾",
-            ));
-        }
+        positive_param(
+            "amplitude",
+            self.amplitude,
+            "a positive, finite displacement scale S⁽⁰⁾",
+        )?;
         Ok(())
     }
 }

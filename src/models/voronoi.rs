@@ -24,7 +24,7 @@
 //! closer one); otherwise (a cell and its neighbours nearly empty, rare) the search
 //! widens ring by ring until it is.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, finite_param, positive_param};
 use crate::hash::{hash_cell, pcg4d};
 use crate::models::fractal::{FractalKind, FractalParams, FractalSurface};
 use crate::stream::{Surface, in_range};
@@ -127,32 +127,29 @@ const MAX_PER_CELL: usize = 8;
 impl VoronoiParams {
     /// Checks every parameter, naming the first one out of range.
     pub fn validate(&self) -> Result<()> {
-        if !(self.density.is_finite() && self.density > 0.0 && 1.0 / self.density.sqrt() >= 1.0) {
+        // Centres 1 to 2³² px apart: one per pixel at most, and grid cells whose
+        // coordinates stay exact in f64 anywhere in ±2^52.
+        if !(self.density.is_finite() && (2f64.powi(-64)..=1.0).contains(&self.density)) {
             return Err(Error::param(
                 "density",
-                self.density,
-                "a positive cell density in centres per pixel², at most 1 (one centre per pixel)",
+                crate::error::short(self.density),
+                "a cell density in centres per pixel² from 2⁻⁶⁴ (centres 2³² px apart) to 1 \
+                 (one centre per pixel)",
             ));
         }
-        if !(self.radius.is_finite() && self.radius > 0.0) {
-            return Err(Error::param(
-                "radius",
-                self.radius,
-                "a positive hemisphere radius, in mean centre spacings",
-            ));
-        }
-        let wave = |a: f64, w: f64| {
-            if !a.is_finite() {
-                Err(Error::param("texture.amplitude", a, "a finite amplitude"))
-            } else if !(w.is_finite() && w > 0.0) {
-                Err(Error::param(
-                    "texture.wavelength_px",
-                    w,
-                    "a positive wavelength in pixels",
-                ))
-            } else {
-                Ok(())
-            }
+        positive_param(
+            "radius",
+            self.radius,
+            "a positive hemisphere radius, in mean centre spacings",
+        )?;
+        let wave = |a: f64, w: f64| -> Result<()> {
+            finite_param("texture.amplitude", a, "a finite amplitude")?;
+            positive_param(
+                "texture.wavelength_px",
+                w,
+                "a positive wavelength in pixels",
+            )?;
+            Ok(())
         };
         match self.texture {
             RegionTexture::None => Ok(()),

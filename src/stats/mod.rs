@@ -895,7 +895,10 @@ mod tests {
         assert_eq!(window_starts(80, 80, 8), vec![0]);
         assert_eq!(window_starts(100, 50, 8), vec![0, 25, 50]);
         // Capped, still spanning the map: 1024 with n = 80 would want 25.
-        assert_eq!(window_starts(1024, 80, 8), vec![0, 134, 269, 404, 539, 674, 809, 944]);
+        assert_eq!(
+            window_starts(1024, 80, 8),
+            vec![0, 134, 269, 404, 539, 674, 809, 944]
+        );
         assert!(window_starts(79, 80, 8).is_empty());
     }
 

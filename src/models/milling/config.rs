@@ -694,27 +694,15 @@ impl MillingConfig {
 }
 
 fn finite(key: &str, v: f64, expected: &str) -> Result<()> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(Error::param(key, v, expected))
-    }
+    crate::error::finite_param(key, v, expected).map(|_| ())
 }
 
 fn positive(key: &str, v: f64, expected: &str) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::param(key, v, expected))
-    }
+    crate::error::positive_param(key, v, expected).map(|_| ())
 }
 
 fn non_negative(key: &str, v: f64, expected: &str) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(Error::param(key, v, expected))
-    }
+    crate::error::non_negative_param(key, v, expected).map(|_| ())
 }
 
 fn unit_range(key: &str, v: f64, lo: f64, range: &str) -> Result<()> {
