@@ -1,0 +1,12 @@
+//! The PNG reader (8- and 16-bit, grey to RGBA, palettes, interlacing).
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use surftile::io::{Format, ReadOptions, read_image_bytes};
+
+fuzz_target!(|data: &[u8]| {
+    if let Ok(image) = read_image_bytes(data, Format::Png, "fuzz.png", &ReadOptions::default()) {
+        let r = &image.raster;
+        assert_eq!(r.data.len(), r.width * r.height * r.channels);
+    }
+});
