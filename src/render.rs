@@ -6,14 +6,49 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::io::{Format, write_heights, write_png8};
 use crate::raster::Raster;
-use crate::shade::{ShadeOptions, shade, shade_slopes};
+use crate::shade::{ShadeOptions, Shader, auto_exaggeration, shade, slope_energy};
 use crate::stream::{Region, Surface};
 
-/// Largest region one render may hold in memory: 2²⁸ samples (1 GiB of f32).
+/// Largest region one render may hold in memory: 2²⁸ values (1 GiB of f32), that is
+/// 2²⁸ samples of heights, or a third as many of RGB. Renders stream their pieces and
+/// their PNG rows, so an accepted render peaks near this buffer (1.5 GB at most).
 pub const MAX_RENDER_SAMPLES: usize = 1 << 28;
+
+/// Largest region one imperfect render may hold: 2²⁵ samples. It keeps heights, layer
+/// ids, tendency and pattern a sample, their crops and the colour image (about 30 bytes
+/// a sample with every output), so that it too stays under 1.5 GB.
+pub const MAX_IMPERFECT_SAMPLES: usize = MAX_RENDER_SAMPLES / 8;
 
 /// Rows filled per progress report.
 const STRIP_ROWS: usize = 256;
+
+/// Most samples one fill call computes: a strip of a wide region has fewer rows, and a
+/// row wider than this is filled in pieces, so that a surface's scratch per call (per
+/// row, per band) stays bounded whatever the region's shape (a 2²⁸ × 1 render of `rock`
+/// peaked at 6.15 GB in one call) and progress is reported along a single row too.
+const PIECE_SAMPLES: usize = 1 << 22;
+
+/// The pieces `region` is filled in, in row-major order: (the piece, the offset of its
+/// first sample in the region). Each piece is contiguous in a row-major buffer (whole
+/// rows, or part of one row), and a surface fills any piece as it fills the whole.
+fn pieces(region: &Region) -> impl Iterator<Item = (Region, usize)> + '_ {
+    let (w, h) = (region.width, region.height);
+    let rows = (PIECE_SAMPLES / w.max(1)).clamp(1, STRIP_ROWS);
+    let cols = w.clamp(1, PIECE_SAMPLES);
+    (0..h).step_by(rows).flat_map(move |row| {
+        let n = rows.min(h - row);
+        (0..w).step_by(cols).map(move |col| {
+            let piece = Region {
+                col0: region.col0 + col as i64,
+                row0: region.row0 + row as i64,
+                width: cols.min(w - col),
+                height: n,
+                ..*region
+            };
+            (piece, row * w + col)
+        })
+    })
+}
 
 /// Checks a requested size from user input (signed, so that negative sizes get a clear
 /// message) and returns it as a region size.
@@ -31,19 +66,25 @@ pub fn render_region(
     region: &Region,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Raster> {
-    check_render_size(region)?;
+    check_render_size(region, surface.channels())?;
     fill_region(surface, region, progress)
 }
 
-/// Refuses a region over [`MAX_RENDER_SAMPLES`], naming the limit.
-fn check_render_size(region: &Region) -> Result<usize> {
+/// Refuses a region of `channels` values a sample over [`MAX_RENDER_SAMPLES`] values,
+/// naming the limit, before anything is allocated.
+fn check_render_size(region: &Region, channels: usize) -> Result<usize> {
     region
         .width
         .checked_mul(region.height)
-        .filter(|&n| n <= MAX_RENDER_SAMPLES)
+        .filter(|&n| n.saturating_mul(channels.max(1)) <= MAX_RENDER_SAMPLES)
         .ok_or_else(|| {
+            let of = if channels > 1 {
+                format!(" of {channels} channels")
+            } else {
+                String::new()
+            };
             Error::Limits(format!(
-                "a {}×{} region is over the limit of {MAX_RENDER_SAMPLES} samples per render; render it in tiles",
+                "a {}×{} region{of} is over the limit of {MAX_RENDER_SAMPLES} values (1 GiB of f32) per render; render it in tiles",
                 region.width, region.height
             ))
         })
@@ -59,12 +100,10 @@ fn fill_region(
     let c = surface.channels();
     let samples = region.width * region.height;
     let mut data = vec![0.0f32; samples * c];
-    let row_len = region.width * c;
-    for (s, strip) in data.chunks_mut(STRIP_ROWS * row_len).enumerate() {
-        let rows = strip.len() / row_len;
-        let sub = region.sub(0, s * STRIP_ROWS, region.width, rows)?;
-        surface.fill(&sub, strip)?;
-        progress(((s * STRIP_ROWS + rows) as f64 / region.height as f64).min(1.0));
+    for (piece, at) in pieces(region) {
+        let n = piece.width * piece.height;
+        surface.fill(&piece, &mut data[at * c..(at + n) * c])?;
+        progress(((at + n) as f64 / samples as f64).min(1.0));
     }
     Raster::from_vec(region.width, region.height, c, data)
 }
@@ -112,15 +151,13 @@ pub fn render_to_file(
             exaggeration: options.exaggeration.map(|e| e / region.step as f32),
             ..*options
         };
+        crate::io::check_png_size(region.width, region.height)?;
+        check_render_size(region, 1)?;
         let pixels = if surface.gradient(region.x, region.y).is_some() {
-            // The model's own gradient, per sample.
-            let g = render_region(&Slopes(surface), region, progress)?;
-            let slopes: Vec<[f32; 2]> = g.data.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
-            shade_slopes(&slopes, &options)
+            shade_analytic(&Slopes(surface), region, &options, progress)?
         } else {
             // One sample of margin on every side for the central differences: the limit
             // applies to the region asked for, not to its margin.
-            check_render_size(region)?;
             let grown = Region {
                 col0: region.col0 - 1,
                 row0: region.row0 - 1,
@@ -128,13 +165,58 @@ pub fn render_to_file(
                 height: region.height + 2,
                 ..*region
             };
-            let heights = fill_region(surface, &grown, progress)?.channel(0);
-            shade(&heights, &options)
+            shade(&fill_region(surface, &grown, progress)?, &options)
         };
         return write_png8(out, region.width, region.height, 1, &pixels);
     }
+    if format == Format::Png {
+        crate::io::check_png_size(region.width, region.height)?;
+    }
     let raster = render_region(surface, region, progress)?;
     write_heights(out, &raster, spacing_um.map(|s| s * region.step))
+}
+
+/// Shades `region` from a model's analytic slopes piece by piece: with an automatic
+/// exaggeration, one pass for the rms slope and one to shade, so that no slope buffer
+/// (8 bytes a sample) is held. The same pixels as [`shade_slopes`] of the whole field.
+fn shade_analytic(
+    slopes: &Slopes,
+    region: &Region,
+    options: &ShadeOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Vec<u8>> {
+    let samples = region.width * region.height;
+    let passes = if options.exaggeration.is_some() { 1 } else { 2 };
+    let mut buffer = Vec::new();
+    let mut each_piece = |pass: usize, f: &mut dyn FnMut(&[f32])| -> Result<()> {
+        for (piece, at) in pieces(region) {
+            buffer.clear();
+            buffer.resize(piece.width * piece.height * 2, 0.0);
+            slopes.fill(&piece, &mut buffer)?;
+            f(&buffer);
+            let done = (at + piece.width * piece.height) as f64 / samples as f64;
+            progress((pass as f64 + done) / passes as f64);
+        }
+        Ok(())
+    };
+    let scale = match options.exaggeration {
+        Some(e) => e,
+        None => {
+            let mut sum = 0.0f64;
+            each_piece(0, &mut |b| {
+                for p in b.chunks_exact(2) {
+                    sum += slope_energy([p[0], p[1]]);
+                }
+            })?;
+            auto_exaggeration(sum, samples)
+        }
+    };
+    let shader = Shader::new(options, scale);
+    let mut pixels = Vec::with_capacity(samples);
+    each_piece(passes - 1, &mut |b| {
+        pixels.extend(b.chunks_exact(2).map(|p| shader.pixel(p[0], p[1])));
+    })?;
+    Ok(pixels)
 }
 
 /// Where `render --imperfect` writes besides its main output.
@@ -232,29 +314,36 @@ pub fn render_imperfect<S: Surface>(
     let samples = grown
         .width
         .checked_mul(grown.height)
-        .filter(|&n| n <= MAX_RENDER_SAMPLES / 2)
+        .filter(|&n| n <= MAX_IMPERFECT_SAMPLES)
         .ok_or_else(|| {
             Error::Limits(format!(
-                "a {}×{} region is over the limit of {} samples per imperfect render; render it in tiles",
-                region.width,
-                region.height,
-                MAX_RENDER_SAMPLES / 2
+                "a {}×{} region is over the limit of {MAX_IMPERFECT_SAMPLES} samples per imperfect render (it holds four layers a sample); render it in tiles",
+                region.width, region.height,
             ))
         })?;
+    if format == Format::Png || outputs.mask.is_some() || outputs.colour.is_some() {
+        crate::io::check_png_size(region.width, region.height)?;
+    }
+    let keep = |wanted: bool| if wanted { samples } else { 0 };
     let mut all = crate::imperfect::LayerFill {
         heights: Vec::with_capacity(samples),
         layers: Vec::with_capacity(samples),
-        tendency: Vec::with_capacity(samples),
-        pattern: Vec::with_capacity(samples),
+        tendency: Vec::with_capacity(keep(outputs.tendency.is_some())),
+        pattern: Vec::with_capacity(keep(outputs.colour.is_some())),
     };
     let mut row = 0;
     while row < grown.height {
         let rows = STRIP_ROWS.min(grown.height - row);
         let part = layer.fill_layers(&grown.sub(0, row, grown.width, rows)?)?;
+        // Only what an output needs is kept.
         all.heights.extend_from_slice(&part.heights);
         all.layers.extend_from_slice(&part.layers);
-        all.tendency.extend_from_slice(&part.tendency);
-        all.pattern.extend_from_slice(&part.pattern);
+        if outputs.tendency.is_some() {
+            all.tendency.extend_from_slice(&part.tendency);
+        }
+        if outputs.colour.is_some() {
+            all.pattern.extend_from_slice(&part.pattern);
+        }
         row += rows;
         progress(row as f64 / grown.height as f64);
     }

@@ -113,15 +113,41 @@ pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
         heights.width.saturating_sub(2),
         heights.height.saturating_sub(2),
     );
-    let mut slopes = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let gx = 0.5 * (heights.get(x + 2, y + 1, 0) - heights.get(x, y + 1, 0));
-            let gy = 0.5 * (heights.get(x + 1, y + 2, 0) - heights.get(x + 1, y, 0));
-            slopes.push([gx, gy]);
-        }
+    // Two passes over the central differences (the automatic exaggeration needs their
+    // rms first) instead of a slope buffer of 8 bytes per pixel.
+    let slopes = || (0..h).flat_map(move |y| (0..w).map(move |x| central_slope(heights, x, y)));
+    let scale = options
+        .exaggeration
+        .unwrap_or_else(|| auto_exaggeration(slopes().map(slope_energy).sum(), w * h));
+    let shader = Shader::new(options, scale);
+    slopes().map(|[gx, gy]| shader.pixel(gx, gy)).collect()
+}
+
+/// The central-difference slope at (x + 1, y + 1) of `heights` (which has a one-sample
+/// margin on every side): (∂h/∂x, ∂h/∂y) per sample.
+#[inline]
+pub fn central_slope(heights: &Raster, x: usize, y: usize) -> [f32; 2] {
+    let gx = 0.5 * (heights.get(x + 2, y + 1, 0) - heights.get(x, y + 1, 0));
+    let gy = 0.5 * (heights.get(x + 1, y + 2, 0) - heights.get(x + 1, y, 0));
+    [gx, gy]
+}
+
+/// A slope's squared length, as the automatic exaggeration sums it (in f32, then
+/// widened: the sum must come out the same however the slopes are visited in order).
+#[inline]
+pub fn slope_energy([gx, gy]: [f32; 2]) -> f64 {
+    (gx * gx + gy * gy) as f64
+}
+
+/// The automatic exaggeration: 0.5 over the rms slope, from the sum of
+/// [`slope_energy`] over `n` slopes (1 for a flat or non-finite field).
+pub fn auto_exaggeration(energy_sum: f64, n: usize) -> f32 {
+    let rms = (energy_sum / n.max(1) as f64).sqrt() as f32;
+    if rms > 0.0 && rms.is_finite() {
+        0.5 / rms
+    } else {
+        1.0
     }
-    shade_slopes(&slopes, options)
 }
 
 /// Shades a field of slopes (∂h/∂x, ∂h/∂y per sample, row-major): from central
@@ -129,26 +155,43 @@ pub fn shade(heights: &Raster, options: &ShadeOptions) -> Vec<u8> {
 /// ([`crate::stream::Surface::gradient`]). One 8-bit intensity per slope.
 pub fn shade_slopes(slopes: &[[f32; 2]], options: &ShadeOptions) -> Vec<u8> {
     let scale = options.exaggeration.unwrap_or_else(|| {
-        let mut sum = 0.0f64;
-        for &[gx, gy] in slopes {
-            sum += (gx * gx + gy * gy) as f64;
-        }
-        let rms = (sum / slopes.len().max(1) as f64).sqrt() as f32;
-        if rms > 0.0 && rms.is_finite() {
-            0.5 / rms
-        } else {
-            1.0
-        }
+        auto_exaggeration(slopes.iter().copied().map(slope_energy).sum(), slopes.len())
     });
-    let l = options.light.normalize();
-    let half = half_vector(l, options.view.normalize());
+    let shader = Shader::new(options, scale);
     slopes
         .iter()
-        .map(|&[gx, gy]| {
-            let r = reflectance(normal_from_gradient(gx, gy, scale), l, half, options);
-            (r.clamp(0.0, 1.0) * 255.0).round() as u8
-        })
+        .map(|&[gx, gy]| shader.pixel(gx, gy))
         .collect()
+}
+
+/// The Phong shading of one material, light and exaggeration, pixel by pixel.
+pub struct Shader<'a> {
+    options: &'a ShadeOptions,
+    scale: f32,
+    light: Vec3,
+    half: Vec3,
+}
+
+impl<'a> Shader<'a> {
+    /// The shader of `options` with heights scaled by `scale`.
+    pub fn new(options: &'a ShadeOptions, scale: f32) -> Shader<'a> {
+        let light = options.light.normalize();
+        let half = half_vector(light, options.view.normalize());
+        Shader {
+            options,
+            scale,
+            light,
+            half,
+        }
+    }
+
+    /// The 8-bit intensity of a sample with slopes (gx, gy).
+    #[inline]
+    pub fn pixel(&self, gx: f32, gy: f32) -> u8 {
+        let n = normal_from_gradient(gx, gy, self.scale);
+        let r = reflectance(n, self.light, self.half, self.options);
+        (r.clamp(0.0, 1.0) * 255.0).round() as u8
+    }
 }
 
 /// The unit normal of a height field with slopes (gx, gy) (height per pixel), heights

@@ -1066,3 +1066,47 @@ fn a_closed_stdout_pipe_ends_quietly() {
         out.status
     );
 }
+
+/// Issue 33, finding 10: a render at the sample limit, whatever its shape, is filled in
+/// bounded pieces. A 2²⁵ × 1 render of `rock` (its 128 MiB output plus the model's
+/// per-row scratch) peaked near 770 MB before (6.15 GB at 2²⁸ × 1); now it runs in a
+/// shell whose address space is capped at 500 MB, with progress. A PNG wider than
+/// libpng reads is refused before anything is rendered.
+#[test]
+fn wide_renders_fill_in_bounded_pieces() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 500000 && exec '{}' render rock --w 33554432 --h 1 --out wide.npy",
+            env!("CARGO_BIN_EXE_surftile")
+        ))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("render: 50%"),
+        "progress along one row: {stderr}"
+    );
+    let wide = std::fs::metadata(dir.path().join("wide.npy"))
+        .unwrap()
+        .len();
+    assert!(wide > 4 * 33554432, "{wide} bytes");
+    let start = std::time::Instant::now();
+    let r = render(dir.path(), "rock", ("268435456", "1"), "o.png", &[]);
+    assert_clean_failure(dir.path(), &r, "libpng", "o.png");
+    let r = render(
+        dir.path(),
+        "rock",
+        ("1", "268435456"),
+        "o.png",
+        &["--shade"],
+    );
+    assert_clean_failure(dir.path(), &r, "1000000 pixels a side", "o.png");
+    assert!(
+        start.elapsed().as_secs_f64() < 5.0,
+        "refused before rendering"
+    );
+}

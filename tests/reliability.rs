@@ -86,18 +86,27 @@ fn an_rsgf_cell_larger_than_the_exemplar_is_refused() {
 /// shape (the product wrapped to 0 and the Fortran reorder panicked).
 #[test]
 fn npy_shapes_are_checked_before_use() {
-    let mut header =
-        "{'descr': '<f4', 'fortran_order': True, 'shape': (4294967296, 4294967296, 1), }"
-            .to_string();
-    while !(10 + header.len() + 1).is_multiple_of(64) {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    let e = read_image_bytes(&bytes, Format::Npy, "huge.npy", &ReadOptions::default());
-    let e = one_line(e.unwrap_err());
+    let npy = |shape: &str| {
+        let mut header = format!("{{'descr': '<f4', 'fortran_order': True, 'shape': {shape}, }}");
+        while !(10 + header.len() + 1).is_multiple_of(64) {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        bytes.extend_from_slice(header.as_bytes());
+        bytes
+    };
+    let read = |bytes: &[u8]| {
+        one_line(
+            read_image_bytes(bytes, Format::Npy, "huge.npy", &ReadOptions::default()).unwrap_err(),
+        )
+    };
+    // 2³²·2³² is 2⁶⁴: refused from the header's element count; a count that fits is
+    // refused by the pixel limit, 2^25.
+    let e = read(&npy("(4294967296, 4294967296, 1)"));
+    assert!(e.contains("element count"), "{e}");
+    let e = read(&npy("(4294967296, 4294967, 1)"));
     assert!(e.contains("2^25"), "{e}");
 }
 
@@ -409,4 +418,32 @@ fn bank_values_are_held_to_the_bakes_bounds() {
     }
     // The untouched golden still reads.
     Bank::from_bytes(&golden, "b.bank").unwrap();
+}
+
+/// Found by the `npy` fuzz target: a shape whose element count passes 2⁶⁴
+/// (`tests/data/bad/npy-shape-product-overflow.npy`, its crash input) overflowed inside
+/// npyz before any check of ours (a panic in debug builds); a version-2 header claiming
+/// 4 GiB made npyz allocate it. Both are refused from the header alone.
+#[test]
+fn npy_headers_are_checked_before_npyz_reads_them() {
+    let crash = std::fs::read(common::repo(
+        "tests/data/bad/npy-shape-product-overflow.npy",
+    ))
+    .unwrap();
+    let e = one_line(
+        read_image_bytes(&crash, Format::Npy, "c.npy", &ReadOptions::default()).unwrap_err(),
+    );
+    assert!(e.contains("element count"), "{e}");
+    let mut huge_header = b"\x93NUMPY\x02\x00".to_vec();
+    huge_header.extend_from_slice(&u32::MAX.to_le_bytes());
+    huge_header.extend_from_slice(b"{'descr'");
+    let e = one_line(
+        read_image_bytes(&huge_header, Format::Npy, "h.npy", &ReadOptions::default()).unwrap_err(),
+    );
+    assert!(e.contains("past the end"), "{e}");
+    // A well-formed file still reads (version 1 and version 2 headers).
+    for seed in ["fuzz/seeds/npy/f4-c.npy", "fuzz/seeds/npy/v2-f4.npy"] {
+        let bytes = std::fs::read(common::repo(seed)).unwrap();
+        read_image_bytes(&bytes, Format::Npy, seed, &ReadOptions::default()).unwrap();
+    }
 }

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
-pub use self::png::{read_unit, write_png8};
+pub use self::png::{MAX_PNG_SIDE, check_size as check_png_size, read_unit, write_png8};
 
 /// A decoded image and what its file said about it.
 #[derive(Clone, Debug)]

@@ -9,8 +9,69 @@ use super::ImageFile;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
+/// Checks an `.npy` file's framing and declared shape before npyz reads it. npyz
+/// allocates whatever header length the file states (up to 4 GiB for a 12-byte file) and
+/// multiplies the dimensions unchecked (a product past 2⁶⁴ wraps in release builds and
+/// panics in debug ones). The header text is parsed with `py_literal`, the parser npyz
+/// itself uses; the element count is then computed with checked arithmetic.
+fn check_header(bytes: &[u8], what: &str) -> Result<()> {
+    use py_literal::Value;
+    let bad = |m: String| Err(Error::decode(what, m));
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return bad("not a .npy file (no \\x93NUMPY magic)".into());
+    }
+    let (text_at, len) = match bytes[6] {
+        1 => (10usize, u16::from_le_bytes([bytes[8], bytes[9]]) as usize),
+        2 | 3 if bytes.len() >= 12 => (
+            12,
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+        ),
+        v => return bad(format!(".npy format version {v}; expected 1, 2 or 3")),
+    };
+    let Some(text) = text_at
+        .checked_add(len)
+        .and_then(|end| bytes.get(text_at..end))
+    else {
+        return bad(format!(
+            "the .npy header says {len} bytes, past the end of the {}-byte file",
+            bytes.len()
+        ));
+    };
+    let text = text.strip_suffix(b"\n").unwrap_or(text);
+    let header: Value = std::str::from_utf8(text)
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .ok_or_else(|| Error::decode(what, "the .npy header is not a Python literal"))?;
+    let Value::Dict(items) = header else {
+        return bad("the .npy header is not a dict".into());
+    };
+    let shape = items.iter().find_map(|(k, v)| match k {
+        Value::String(k) if k == "shape" => Some(v),
+        _ => None,
+    });
+    let Some(Value::Tuple(dims)) = shape else {
+        return bad("the .npy header has no shape tuple".into());
+    };
+    let mut count = Some(1u64);
+    for d in dims {
+        let dim = match d {
+            Value::Integer(i) => u64::try_from(i).ok(),
+            _ => None,
+        };
+        count = count.zip(dim).and_then(|(n, d)| n.checked_mul(d));
+    }
+    if count.is_none() {
+        return bad(format!(
+            "array shape {}: the element count is not a whole number below 2⁶⁴",
+            Value::Tuple(dims.clone())
+        ));
+    }
+    Ok(())
+}
+
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let bad = |m: String| Error::decode(what, m);
+    check_header(bytes, what)?;
     let npy = NpyFile::new(bytes).map_err(|e| bad(format!("not a valid .npy file ({e})")))?;
     let fortran = npy.order() == Order::Fortran;
     let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();

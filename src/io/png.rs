@@ -110,24 +110,41 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f6
         height_max: Some(hi as f64),
         spacing_um,
     };
-    let mut bytes = Vec::with_capacity(raster.data.len() * 2);
-    for &v in &raster.data {
-        let level = if span > 0.0 {
-            (((v - lo) as f64 / span) * 65535.0).round() as u16
-        } else {
-            0
-        };
-        bytes.extend_from_slice(&level.to_be_bytes());
-    }
+    let row_len = raster.width * raster.channels;
     encode(
         w,
         raster.width,
         raster.height,
         color,
         BitDepth::Sixteen,
-        &bytes,
         Some(&meta),
+        |y, bytes| {
+            for &v in &raster.data[y * row_len..(y + 1) * row_len] {
+                let level = if span > 0.0 {
+                    (((v - lo) as f64 / span) * 65535.0).round() as u16
+                } else {
+                    0
+                };
+                bytes.extend_from_slice(&level.to_be_bytes());
+            }
+        },
     )
+}
+
+/// Widest and tallest PNG written: libpng's default user limit
+/// (`PNG_USER_WIDTH_MAX`/`PNG_USER_HEIGHT_MAX`), beyond which libpng-based readers and
+/// most viewers refuse the file. It also bounds the encoder's row buffers.
+pub const MAX_PNG_SIDE: usize = 1_000_000;
+
+/// Refuses a PNG of `width × height` beyond [`MAX_PNG_SIDE`], before anything is
+/// rendered or allocated.
+pub fn check_size(width: usize, height: usize) -> Result<()> {
+    if width > MAX_PNG_SIDE || height > MAX_PNG_SIDE {
+        return Err(Error::Limits(format!(
+            "a {width}×{height} PNG is over {MAX_PNG_SIDE} pixels a side, which libpng and most viewers refuse; write .tif or .npy, or render it in tiles"
+        )));
+    }
+    Ok(())
 }
 
 /// Writes an 8-bit PNG (grey, RGB or RGBA by `channels`: 1, 3 or 4) atomically to `path`.
@@ -150,26 +167,43 @@ pub fn write_png8(
         4 => ColorType::Rgba,
         _ => ColorType::Grayscale,
     };
+    let row_len = width * channels.clamp(1, 4);
+    if pixels.len() != row_len * height {
+        return Err(Error::param(
+            "pixels",
+            pixels.len(),
+            format!("{width}×{height}×{channels} bytes"),
+        ));
+    }
     super::write_atomically(path, |w| {
-        encode(w, width, height, color, BitDepth::Eight, pixels, None)
+        encode(
+            w,
+            width,
+            height,
+            color,
+            BitDepth::Eight,
+            None,
+            |y, bytes| {
+                bytes.extend_from_slice(&pixels[y * row_len..(y + 1) * row_len]);
+            },
+        )
     })
 }
 
+/// Encodes a PNG row by row: `row(y, bytes)` appends row y's bytes. The image data is
+/// streamed into IDAT chunks, so no whole-image buffer (raw or compressed) is held.
 fn encode(
     w: &mut impl Write,
     width: usize,
     height: usize,
     color: ColorType,
     depth: BitDepth,
-    bytes: &[u8],
     meta: Option<&HeightMeta>,
+    mut row: impl FnMut(usize, &mut Vec<u8>),
 ) -> Result<()> {
     let err = |e: png::EncodingError| Error::decode("PNG output", e.to_string());
-    let (w32, h32) = (
-        u32::try_from(width).map_err(|_| Error::Limits(format!("PNG width {width}")))?,
-        u32::try_from(height).map_err(|_| Error::Limits(format!("PNG height {height}")))?,
-    );
-    let mut enc = png::Encoder::new(w, w32, h32);
+    check_size(width, height)?;
+    let mut enc = png::Encoder::new(w, width as u32, height as u32);
     enc.set_color(color);
     enc.set_depth(depth);
     if let Some(meta) = meta {
@@ -179,6 +213,15 @@ fn encode(
             .map_err(err)?;
     }
     let mut writer = enc.write_header().map_err(err)?;
-    writer.write_image_data(bytes).map_err(err)?;
+    let mut stream = writer.stream_writer_with_size(1 << 16).map_err(err)?;
+    let mut bytes = Vec::new();
+    for y in 0..height {
+        bytes.clear();
+        row(y, &mut bytes);
+        stream
+            .write_all(&bytes)
+            .map_err(|e| Error::decode("PNG output", e.to_string()))?;
+    }
+    stream.finish().map_err(err)?;
     writer.finish().map_err(err)
 }
