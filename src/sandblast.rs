@@ -33,8 +33,17 @@ use crate::io::ImageFile;
 use crate::raster::Raster;
 use crate::stats::windowed_variance_ratio;
 
-/// Largest output accepted, in pixels (2³⁰: 4 GiB of f32 heights).
-pub const MAX_OUTPUT_PIXELS: usize = 1 << 30;
+/// Largest output accepted, in pixels: 2²⁶ (8192²). The pipeline holds its whole output
+/// while stitching, with weights and patches besides, about 20 bytes a pixel: 16384²
+/// peaked at 5.2 GB and 32768² passed 11.7 GB. For larger surfaces, bake a bank and
+/// render it: renders stream.
+pub const MAX_OUTPUT_PIXELS: usize = 1 << 26;
+/// Largest padded-RPN output (2²⁴, 4096²): it transforms the whole plane at once, about
+/// 40 bytes a pixel (8192² peaked at 2.6 GB).
+pub const MAX_PADDED_PIXELS: usize = 1 << 24;
+/// Most values the RPN patches may hold together before they are stitched: 2²⁸ (1 GiB
+/// of f32), what an 8192² output's patches of 512 px at half overlap come to.
+pub const MAX_PATCH_VALUES: usize = 1 << 28;
 /// Default largest patch side, in pixels. Patches as large as the measurement keep its
 /// longest wavelengths (an RPN patch holds none longer than itself): on the stationary
 /// measured maps, 512 px patches give a PSD error about half that of seed 000's 256,
@@ -145,7 +154,9 @@ impl SandblastBuilder {
             return Err(Error::param(
                 "size",
                 format!("{}x{}", s.width, s.height),
-                format!("1 to {MAX_OUTPUT_PIXELS} pixels in all"),
+                format!(
+                    "1 to {MAX_OUTPUT_PIXELS} pixels in all (2^26: the pipeline holds its whole output; for more, bake a bank and render it)"
+                ),
             ));
         }
         for (name, v) in [
@@ -344,6 +355,11 @@ impl Sandblast {
             );
             (interleave(&planes, w, h)?, Route::Crop)
         } else if self.padded {
+            if w * h > MAX_PADDED_PIXELS {
+                return Err(Error::Limits(format!(
+                    "a {w}×{h} padded RPN is over its limit of {MAX_PADDED_PIXELS} pixels (one FFT of the whole plane, about 40 bytes a pixel); stitch it instead (leave out `padded`)"
+                )));
+            }
             progress(&format!(
                 "padded RPN: {ew}×{eh} scaled and padded to {w}×{h} with a sigmoid border"
             ));
@@ -364,6 +380,18 @@ impl Sandblast {
             let params = StitchParams::new(p, self.overlap.unwrap_or(p / 2).max(1))?;
             let params = params.with_blend(self.seam_blend.unwrap_or(params.overlap() / 8))?;
             let (nx, ny) = (params.count(w), params.count(h));
+            // Every patch is made before stitching: bound what they hold, whatever the
+            // output's shape (a 2^26 × 1 output asked for 262,144 patches of 512², and
+            // took the machine's 24 GB).
+            let held = nx
+                .checked_mul(ny)
+                .and_then(|n| n.checked_mul(p * p))
+                .and_then(|n| n.checked_mul(c));
+            if held.is_none_or(|n| n > MAX_PATCH_VALUES) {
+                return Err(Error::Limits(format!(
+                    "a {w}×{h} output needs {nx}×{ny} patches of {p}×{p} px, over the budget of {MAX_PATCH_VALUES} patch values held for stitching; ask for a squarer size or a smaller `patch`"
+                )));
+            }
             progress(&format!(
                 "stitching {nx}×{ny} RPN patches of {p}×{p} px, overlap {} px, {}",
                 params.overlap(),

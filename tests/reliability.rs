@@ -447,3 +447,37 @@ fn npy_headers_are_checked_before_npyz_reads_them() {
         read_image_bytes(&bytes, Format::Npy, seed, &ReadOptions::default()).unwrap();
     }
 }
+
+/// Finding 10 (sandblast): the pipeline holds its whole output and every RPN patch
+/// before stitching. 32768² (then accepted) passed 11.7 GB, and a thin 2^26 × 1 output
+/// asked for 262,143 patches of 512² and took all of the machine's memory. Now the
+/// output is at most 2^26 pixels, the patches at most 2^28 values, a padded plane at
+/// most 2^24 pixels, each refused before any patch is made, naming the limit.
+#[test]
+fn sandblast_sizes_are_held_to_a_memory_budget() {
+    use surftile::sandblast::Sandblast;
+    let image = read_image(&common::repo("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let e = Sandblast::builder(8193, 8192).build().unwrap_err();
+    assert!(one_line(e).contains("67108864"));
+    let start = std::time::Instant::now();
+    for (b, needle) in [
+        (Sandblast::builder(1 << 26, 1), "patches"),
+        (Sandblast::builder(1, 1 << 26), "patches"),
+        (Sandblast::builder(4097, 4096).padded(true), "padded"),
+    ] {
+        let e = b
+            .build()
+            .unwrap()
+            .run(&image, "di-6", &mut |_| {})
+            .unwrap_err();
+        let e = one_line(e);
+        assert!(
+            e.contains(needle) && (e.contains("limit") || e.contains("budget")),
+            "{e}"
+        );
+    }
+    assert!(
+        start.elapsed().as_secs_f64() < 10.0,
+        "refused before the patches are made"
+    );
+}

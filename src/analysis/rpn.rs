@@ -99,7 +99,7 @@ pub enum IaaftEnd {
 /// little cost to its spectrum.
 ///
 /// # Panics
-/// With more than 2³² samples (32 GiB of f64; the pipeline's outputs stop at 2³⁰).
+/// With more than 2³² samples (32 GiB of f64; the pipeline's outputs stop at 2²⁶).
 pub fn match_histogram_keeping_modulus(
     plane: &[f64],
     width: usize,

@@ -338,18 +338,16 @@ impl BakerBuilder {
             ));
         }
         if let Some(e) = b.triangle_edge
-            && !(e.is_finite() && e >= 2.0)
+            && !(e >= 2.0 && crate::error::positive_param("triangle-edge", e, "").is_ok())
         {
             return Err(Error::param(
                 "triangle-edge",
-                e,
-                "a length of at least 2 pixels",
+                crate::error::short(e),
+                "a length of at least 2 pixels, at most 1e30",
             ));
         }
-        if let Some(s) = b.spacing_um
-            && !(s.is_finite() && s > 0.0)
-        {
-            return Err(Error::param("spacing", s, "a positive pixel spacing in µm"));
+        if let Some(s) = b.spacing_um {
+            crate::error::positive_param("spacing", s, "a positive pixel spacing in µm")?;
         }
         Ok(b)
     }

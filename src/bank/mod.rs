@@ -540,8 +540,11 @@ impl Bank {
                     "tile size {w}×{ht}; expected powers of two from 4 to 8192"
                 ));
             }
-            if !(triangle_edge.is_finite() && triangle_edge >= 1.0) {
-                return bad(format!("triangle edge {triangle_edge}; expected ≥ 1 pixel"));
+            if !(in_range(triangle_edge) && triangle_edge >= 1.0) {
+                return bad(format!(
+                    "triangle edge {}; expected 1 to 1e30 pixels",
+                    crate::error::short(triangle_edge)
+                ));
             }
             None
         };
@@ -549,7 +552,7 @@ impl Bank {
             return bad(format!("{} mip levels; expected 1 to 14", h.levels.len()));
         }
         let tables_fit =
-            (2..=1 << 20).contains(&lut_size) && lut_z_range > 0.0 && lut_z_range.is_finite();
+            (2..=1 << 20).contains(&lut_size) && positive_param("", lut_z_range, "").is_ok();
         if !toroidal && !tables_fit {
             return bad(format!(
                 "T⁻¹ table of {lut_size} entries over ±{lut_z_range}"
