@@ -137,22 +137,12 @@ pub fn render_to_file(
     spacing_um: Option<f64>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
-    let format = Format::from_path(out)?;
+    preflight(region, out, shading, surface.channels())?;
     if let Some(options) = shading {
-        options.validate()?;
-        if format != Format::Png {
-            return Err(Error::param(
-                "out",
-                out.display(),
-                "a .png file with `shade` (the shading is an 8-bit image)",
-            ));
-        }
         let options = ShadeOptions {
             exaggeration: options.exaggeration.map(|e| e / region.step as f32),
             ..*options
         };
-        crate::io::check_png_size(region.width, region.height)?;
-        check_render_size(region, 1)?;
         let pixels = if surface.gradient(region.x, region.y).is_some() {
             shade_analytic(&Slopes(surface), region, &options, progress)?
         } else {
@@ -169,11 +159,37 @@ pub fn render_to_file(
         };
         return write_png8(out, region.width, region.height, 1, &pixels);
     }
+    let raster = render_region(surface, region, progress)?;
+    write_heights(out, &raster, spacing_um.map(|s| s * region.step))
+}
+
+/// What [`render_to_file`] checks before anything is filled or allocated: the output's
+/// format (an 8-bit PNG when shading), the PNG side limit, and the value limit of the
+/// region asked for (shading fills one sample of margin beyond it, which the limit does
+/// not count: a 16384² `--shade` render was refused as 16386²). Returns the format.
+fn preflight(
+    region: &Region,
+    out: &Path,
+    shading: Option<&ShadeOptions>,
+    channels: usize,
+) -> Result<Format> {
+    let format = Format::from_path(out)?;
+    if let Some(options) = shading {
+        options.validate()?;
+        if format != Format::Png {
+            return Err(Error::param(
+                "out",
+                out.display(),
+                "a .png file with `shade` (the shading is an 8-bit image)",
+            ));
+        }
+    }
     if format == Format::Png {
         crate::io::check_png_size(region.width, region.height)?;
     }
-    let raster = render_region(surface, region, progress)?;
-    write_heights(out, &raster, spacing_um.map(|s| s * region.step))
+    // Shading fills heights (channel 0) only.
+    check_render_size(region, if shading.is_some() { 1 } else { channels })?;
+    Ok(format)
 }
 
 /// Shades `region` from a model's analytic slopes piece by piece: with an automatic
@@ -393,4 +409,28 @@ pub fn render_imperfect<S: Surface>(
         write_heights(&staged.path(t), &raster, None)?;
     }
     staged.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Finding 11: the limit applies to the region asked for. 16384² shaded is exactly
+    /// 2²⁸ samples and passes (its fill has a one-sample margin); one more row does not.
+    #[test]
+    fn shading_margin_is_not_counted_against_the_limit() {
+        let shade = ShadeOptions::default();
+        let out = Path::new("o.png");
+        let at = |w, h| Region::new(0.0, 0.0, w, h);
+        assert_eq!(
+            preflight(&at(16384, 16384), out, Some(&shade), 1).unwrap(),
+            Format::Png
+        );
+        let e = preflight(&at(16384, 16385), out, Some(&shade), 1).unwrap_err();
+        assert!(e.to_string().contains("268435456"), "{e}");
+        // Heights of three channels count three values a sample.
+        preflight(&at(16384, 16384), Path::new("o.npy"), None, 1).unwrap();
+        assert!(preflight(&at(16384, 16384), Path::new("o.npy"), None, 3).is_err());
+        assert!(preflight(&at(9459, 9459), Path::new("o.npy"), None, 3).is_ok());
+    }
 }
