@@ -423,7 +423,8 @@ fn bank_values_are_held_to_the_bakes_bounds() {
 /// Found by the `npy` fuzz target: a shape whose element count passes 2⁶⁴
 /// (`tests/data/bad/npy-shape-product-overflow.npy`, its crash input) overflowed inside
 /// npyz before any check of ours (a panic in debug builds); a version-2 header claiming
-/// 4 GiB made npyz allocate it. Both are refused from the header alone.
+/// 4 GiB made npyz allocate it; a deeply nested header hung its parser. All are refused
+/// from the header alone.
 #[test]
 fn npy_headers_are_checked_before_npyz_reads_them() {
     let crash = std::fs::read(common::repo(
@@ -441,6 +442,17 @@ fn npy_headers_are_checked_before_npyz_reads_them() {
         read_image_bytes(&huge_header, Format::Npy, "h.npy", &ReadOptions::default()).unwrap_err(),
     );
     assert!(e.contains("past the end"), "{e}");
+    // Found by the same target: 118 bytes of '{' in a header made the header parser
+    // (py_literal, inside npyz too) backtrack past 60 s. Refused from the nesting, at once.
+    let nested = std::fs::read(common::repo("tests/data/bad/npy-nested-header.npy")).unwrap();
+    let start = std::time::Instant::now();
+    let e = one_line(
+        read_image_bytes(&nested, Format::Npy, "n.npy", &ReadOptions::default()).unwrap_err(),
+    );
+    assert!(
+        e.contains("nests") && start.elapsed().as_secs_f64() < 1.0,
+        "{e}"
+    );
     // A well-formed file still reads (version 1 and version 2 headers).
     for seed in ["fuzz/seeds/npy/f4-c.npy", "fuzz/seeds/npy/v2-f4.npy"] {
         let bytes = std::fs::read(common::repo(seed)).unwrap();

@@ -9,6 +9,43 @@ use super::ImageFile;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
+/// Longest `.npy` header read: numpy's default `max_header_size`.
+const MAX_HEADER_BYTES: usize = 10_000;
+
+/// Deepest bracket nesting of an `.npy` header read: a plain array's is 2 (the dict and
+/// its shape tuple); structured dtypes, which the reader refuses anyway, nest a little
+/// deeper.
+const MAX_HEADER_NESTING: usize = 6;
+
+/// The deepest nesting of (), [] and {} in a Python literal, outside its string
+/// literals (quoted with ' or ", backslash escapes skipped).
+fn nesting_depth(text: &[u8]) -> usize {
+    let (mut depth, mut deepest, mut quote, mut escaped) = (0usize, 0usize, None, false);
+    for &b in text {
+        match quote {
+            Some(q) => {
+                if escaped {
+                    escaped = false;
+                } else if b == b'\\' {
+                    escaped = true;
+                } else if b == q {
+                    quote = None;
+                }
+            }
+            None => match b {
+                b'\'' | b'"' => quote = Some(b),
+                b'(' | b'[' | b'{' => {
+                    depth += 1;
+                    deepest = deepest.max(depth);
+                }
+                b')' | b']' | b'}' => depth = depth.saturating_sub(1),
+                _ => {}
+            },
+        }
+    }
+    deepest
+}
+
 /// Checks an `.npy` file's framing and declared shape before npyz reads it. npyz
 /// allocates whatever header length the file states (up to 4 GiB for a 12-byte file) and
 /// multiplies the dimensions unchecked (a product past 2⁶⁴ wraps in release builds and
@@ -38,6 +75,21 @@ fn check_header(bytes: &[u8], what: &str) -> Result<()> {
         ));
     };
     let text = text.strip_suffix(b"\n").unwrap_or(text);
+    // The parser backtracks exponentially on deep nesting (118 bytes of '{' ran past
+    // 60 s, found by the npy fuzz target), and a plain array's header is a flat dict:
+    // numpy itself refuses headers over 10,000 bytes unless told otherwise.
+    if text.len() > MAX_HEADER_BYTES {
+        return bad(format!(
+            "the .npy header is {} bytes; expected at most {MAX_HEADER_BYTES} (numpy's own limit)",
+            text.len()
+        ));
+    }
+    let depth = nesting_depth(text);
+    if depth > MAX_HEADER_NESTING {
+        return bad(format!(
+            "the .npy header nests {depth} brackets deep; expected a flat dict (at most {MAX_HEADER_NESTING})"
+        ));
+    }
     let header: Value = std::str::from_utf8(text)
         .ok()
         .and_then(|t| t.parse().ok())
@@ -174,4 +226,19 @@ pub(super) fn write(w: &mut impl Write, raster: &Raster) -> Result<()> {
         .map_err(err)?;
     writer.extend(raster.data.iter().copied()).map_err(err)?;
     writer.finish().map_err(err)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::nesting_depth;
+
+    #[test]
+    fn nesting_is_counted_outside_strings() {
+        let plain = b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4), }";
+        assert_eq!(nesting_depth(plain), 2);
+        // Brackets and an escaped quote inside strings do not count.
+        assert_eq!(nesting_depth(br"{'a': '((([{', 'b': 'it\'s ((', 'c': [(1,)]}"), 3);
+        assert_eq!(nesting_depth(b"{{{{{{{{"), 8);
+        assert_eq!(nesting_depth(b"))){"), 1);
+    }
 }
