@@ -493,3 +493,19 @@ fn sandblast_sizes_are_held_to_a_memory_budget() {
         "refused before the patches are made"
     );
 }
+
+/// Found by the `png` fuzz target (CRCs then recomputed, so a real file does it): a
+/// palette image whose PLTE chunk holds 49 bytes, not a whole number of RGB entries,
+/// panicked inside png 0.18.1's palette expansion (`surftile stats` exited 101). It is
+/// refused from the header, naming the chunk.
+#[test]
+fn png_palettes_are_checked_before_expansion() {
+    let bytes = std::fs::read(common::repo("tests/data/bad/png-plte-49-bytes.png")).unwrap();
+    let e = read_image_bytes(&bytes, Format::Png, "p.png", &ReadOptions::default());
+    let e = one_line(e.unwrap_err());
+    assert!(e.contains("PLTE chunk has 49 bytes"), "{e}");
+    // A well-formed 4-bit palette image with transparency still reads.
+    let good = std::fs::read(common::repo("fuzz/seeds/png/palette4.png")).unwrap();
+    let image = read_image_bytes(&good, Format::Png, "p4.png", &ReadOptions::default()).unwrap();
+    assert_eq!((image.raster.width, image.raster.height), (8, 8));
+}

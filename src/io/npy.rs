@@ -237,7 +237,10 @@ mod tests {
         let plain = b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, 4), }";
         assert_eq!(nesting_depth(plain), 2);
         // Brackets and an escaped quote inside strings do not count.
-        assert_eq!(nesting_depth(br"{'a': '((([{', 'b': 'it\'s ((', 'c': [(1,)]}"), 3);
+        assert_eq!(
+            nesting_depth(br"{'a': '((([{', 'b': 'it\'s ((', 'c': [(1,)]}"),
+            3
+        );
         assert_eq!(nesting_depth(b"{{{{{{{{"), 8);
         assert_eq!(nesting_depth(b"))){"), 1);
     }

@@ -36,6 +36,20 @@ fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
     {
         let info = reader.info();
         super::check_shape(what, info.width as usize, info.height as usize, 1)?;
+        // png 0.18.1 panics expanding a palette whose PLTE chunk is not a whole number
+        // of RGB entries (found by the png fuzz target; CRCs correct). The PNG
+        // specification asks for 1 to 256 entries of 3 bytes.
+        if info.color_type == ColorType::Indexed {
+            let len = info.palette.as_deref().map_or(0, <[u8]>::len);
+            if len == 0 || len % 3 != 0 || len > 768 {
+                return Err(Error::decode(
+                    what,
+                    format!(
+                        "not a valid PNG (a palette image whose PLTE chunk has {len} bytes; expected 3 to 768, a multiple of 3)"
+                    ),
+                ));
+            }
+        }
     }
     let size = reader
         .output_buffer_size()
