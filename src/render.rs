@@ -194,7 +194,8 @@ fn preflight(
 
 /// Shades `region` from a model's analytic slopes piece by piece: with an automatic
 /// exaggeration, one pass for the rms slope and one to shade, so that no slope buffer
-/// (8 bytes a sample) is held. The same pixels as [`shade_slopes`] of the whole field.
+/// (8 bytes a sample) is held. The same pixels as [`crate::shade::shade_slopes`] of the
+/// whole field.
 fn shade_analytic(
     slopes: &Slopes,
     region: &Region,

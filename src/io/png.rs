@@ -177,11 +177,16 @@ pub fn write_png8(
         ));
     }
     let color = match channels {
+        1 => ColorType::Grayscale,
         3 => ColorType::Rgb,
         4 => ColorType::Rgba,
-        _ => ColorType::Grayscale,
+        c => {
+            return Err(Error::Unsupported(format!(
+                "writing a {c}-channel 8-bit PNG"
+            )));
+        }
     };
-    let row_len = width * channels.clamp(1, 4);
+    let row_len = width * channels;
     if pixels.len() != row_len * height {
         return Err(Error::param(
             "pixels",
