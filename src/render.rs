@@ -174,6 +174,18 @@ fn preflight(
     channels: usize,
 ) -> Result<Format> {
     let format = Format::from_path(out)?;
+    check_shaded_output(out, format, shading)?;
+    if format == Format::Png {
+        crate::io::check_png_size(region.width, region.height)?;
+    }
+    // Shading fills heights (channel 0) only.
+    check_render_size(region, if shading.is_some() { 1 } else { channels })?;
+    Ok(format)
+}
+
+/// With `shading`, checks its options and that `out` (of `format`) is a PNG: the
+/// shading is an 8-bit image.
+fn check_shaded_output(out: &Path, format: Format, shading: Option<&ShadeOptions>) -> Result<()> {
     if let Some(options) = shading {
         options.validate()?;
         if format != Format::Png {
@@ -184,12 +196,7 @@ fn preflight(
             ));
         }
     }
-    if format == Format::Png {
-        crate::io::check_png_size(region.width, region.height)?;
-    }
-    // Shading fills heights (channel 0) only.
-    check_render_size(region, if shading.is_some() { 1 } else { channels })?;
-    Ok(format)
+    Ok(())
 }
 
 /// Shades `region` from a model's analytic slopes piece by piece: with an automatic
@@ -307,16 +314,7 @@ pub fn render_imperfect<S: Surface>(
         }
     }
     crate::io::Staged::distinct(&named)?;
-    if let Some(o) = shading {
-        o.validate()?;
-        if format != Format::Png {
-            return Err(Error::param(
-                "out",
-                out.display(),
-                "a .png file with `shade` (the shading is an 8-bit image)",
-            ));
-        }
-    }
+    check_shaded_output(out, format, shading)?;
     region.validate()?;
     // One sample of margin for the shading's central differences (of the main output
     // or of the colour image).

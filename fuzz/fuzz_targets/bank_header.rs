@@ -7,8 +7,6 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use surftile::bank::Bank;
-use surftile::kinds;
 
 /// One bank of each rule (blend, rsgf, synth, milling, toroidal, wang); the seeds in
 /// `seeds/bank_header/` start with their index.
@@ -42,15 +40,5 @@ fuzz_target!(|data: &[u8]| {
     // The header is the text up to a NUL; what follows chooses where to sample.
     let end = rest.iter().position(|&b| b == 0).unwrap_or(rest.len());
     let (header, tail) = rest.split_at(end);
-    let file = assemble(BASES[pick as usize % BASES.len()], header);
-    let Ok(bank) = Bank::from_bytes(&file, "fuzz.bank") else {
-        return;
-    };
-    if kinds::check(&bank, "fuzz.bank").is_err() {
-        return;
-    }
-    let _ = kinds::describe(&bank);
-    if let Ok(surface) = kinds::open(&bank, 3) {
-        common::exercise(surface.as_ref(), tail);
-    }
+    common::bank(&assemble(BASES[pick as usize % BASES.len()], header), tail);
 });

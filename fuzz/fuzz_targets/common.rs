@@ -66,3 +66,26 @@ pub fn exercise(surface: &dyn Surface, tail: &[u8]) {
         );
     }
 }
+
+/// A bank file as the readers take it: parsed, its record checked, described, opened
+/// with seed 3, then [`exercise`]d with `tail`'s choices.
+pub fn bank(file: &[u8], tail: &[u8]) {
+    let Ok(bank) = surftile::bank::Bank::from_bytes(file, "fuzz.bank") else {
+        return;
+    };
+    if surftile::kinds::check(&bank, "fuzz.bank").is_err() {
+        return;
+    }
+    let _ = surftile::kinds::describe(&bank);
+    if let Ok(surface) = surftile::kinds::open(&bank, 3) {
+        exercise(surface.as_ref(), tail);
+    }
+}
+
+/// A TOML target's input: the text up to the first NUL (as UTF-8), and the bytes after
+/// it, which choose where to sample. None when the text is not UTF-8.
+pub fn text_and_choices(data: &[u8]) -> Option<(&str, &[u8])> {
+    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
+    let text = std::str::from_utf8(&data[..end]).ok()?;
+    Some((text, &data[end..]))
+}

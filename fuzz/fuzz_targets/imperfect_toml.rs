@@ -23,8 +23,8 @@ impl Surface for Ridges {
 }
 
 fuzz_target!(|data: &[u8]| {
-    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
-    let Ok(text) = std::str::from_utf8(&data[..end]) else {
+    // The text up to a NUL is the file; what follows chooses where to sample.
+    let Some((text, tail)) = common::text_and_choices(data) else {
         return;
     };
     let Ok(config) = ImperfectConfig::from_toml(text, "fuzz.toml") else {
@@ -34,7 +34,6 @@ fuzz_target!(|data: &[u8]| {
     let Ok(surface) = Imperfect::new(Ridges, &config, Some(base), 11) else {
         return;
     };
-    let tail = &data[end..];
     common::exercise(&surface, tail);
     let mut pick = common::Choices(tail);
     let region = Region::new(pick.coordinate(), pick.coordinate(), 8, 8).with_step(pick.step());

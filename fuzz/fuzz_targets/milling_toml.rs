@@ -9,14 +9,14 @@ use libfuzzer_sys::fuzz_target;
 use surftile::models::milling::{MillingConfig, MillingSurface};
 
 fuzz_target!(|data: &[u8]| {
-    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
-    let Ok(text) = std::str::from_utf8(&data[..end]) else {
+    // The text up to a NUL is the file; what follows chooses where to sample.
+    let Some((text, tail)) = common::text_and_choices(data) else {
         return;
     };
     let Ok(config) = MillingConfig::from_toml(text, "fuzz.toml") else {
         return;
     };
-    let mut pick = common::Choices(&data[end..]);
+    let mut pick = common::Choices(tail);
     let spacing_um = [6.1, 0.5, 25.0, 1e-3][(pick.byte() % 4) as usize];
     let base = std::path::Path::new("/nonexistent-surftile-fuzz");
     let Ok(surface) =

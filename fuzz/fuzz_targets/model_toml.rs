@@ -8,14 +8,13 @@ use surftile::models::rugged::ModelConfig;
 
 fuzz_target!(|data: &[u8]| {
     // The text up to a NUL is the file; what follows chooses where to sample.
-    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
-    let Ok(text) = std::str::from_utf8(&data[..end]) else {
+    let Some((text, tail)) = common::text_and_choices(data) else {
         return;
     };
     let Ok(config) = ModelConfig::from_toml(text, "fuzz.toml") else {
         return;
     };
     if let Ok(surface) = config.surface(7) {
-        common::exercise(surface.as_ref(), &data[end..]);
+        common::exercise(surface.as_ref(), tail);
     }
 });
