@@ -1,6 +1,10 @@
 //! `height()` at random coordinates near the origin and at |x| ~ 1e9 (the constant-time
 //! check: far / near ≤ 1.2), next to a naive baseline: one bilinear fetch from one
 //! 256² tile, the floor any tiled sampler pays.
+//!
+//! `sample_1e6/height_random_points_loop`: the Rust loop over 10⁶ random points within
+//! ±10⁶ px, the baseline of the Python package's `Surface.height` on numpy arrays
+//! (`python/bench.py` runs both).
 
 use std::hint::black_box;
 
@@ -77,6 +81,24 @@ fn bench(c: &mut Criterion) {
                     top + (bottom - top) * ty
                 })
                 .sum::<f32>()
+        })
+    });
+    g.finish();
+
+    const MILLION: usize = 1_000_000;
+    let million: Vec<(f64, f64)> = (0..MILLION)
+        .map(|_| (rng.random_range(-1e6..1e6), rng.random_range(-1e6..1e6)))
+        .collect();
+    let mut g = c.benchmark_group("sample_1e6");
+    g.sample_size(10)
+        .throughput(Throughput::Elements(MILLION as u64));
+    let mut out = vec![0.0f32; MILLION];
+    g.bench_function("height_random_points_loop", |b| {
+        b.iter(|| {
+            for (o, &(x, y)) in out.iter_mut().zip(&million) {
+                *o = surface.height(black_box(x), black_box(y));
+            }
+            black_box(out[MILLION / 2])
         })
     });
     g.finish();

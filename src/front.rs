@@ -106,7 +106,15 @@ impl Open {
                 spacing_um: self.spacing_um,
             },
         )?;
-        Ok(Source { loaded, layer })
+        let file_bytes = loaded
+            .bank()
+            .and_then(|_| std::fs::metadata(&self.spec).ok())
+            .map(|m| m.len());
+        Ok(Source {
+            loaded,
+            layer,
+            file_bytes,
+        })
     }
 }
 
@@ -121,9 +129,21 @@ struct Layer {
 pub struct Source {
     loaded: Box<dyn Loaded>,
     layer: Option<Layer>,
+    /// The bank file's size, for [`Source::info_json`].
+    file_bytes: Option<u64>,
 }
 
 impl Source {
+    /// A bank held in memory (just baked, say) as a source, without a layer; checked
+    /// in full as a bank file is.
+    pub fn from_bank(bank: Bank) -> Result<Source> {
+        Ok(Source {
+            loaded: crate::kinds::bank_source(bank)?,
+            layer: None,
+            file_bytes: None,
+        })
+    }
+
     /// The surface placed with `seed`, with the imperfection layer over it when one was
     /// asked for (its noise seeded with `seed` too).
     pub fn surface(&self, seed: u32) -> Result<Box<dyn Surface>> {
@@ -165,6 +185,33 @@ impl Source {
     /// Pixel spacing in µm, where the source has one.
     pub fn spacing_um(&self) -> Option<f64> {
         self.loaded.spacing_um()
+    }
+
+    /// The unit of its heights: "um" for milling and for height maps baked with a
+    /// known spacing, "" (pixels or grey levels) otherwise.
+    pub fn height_unit(&self) -> String {
+        self.loaded.height_unit()
+    }
+
+    /// What `surftile info --json` prints: for a bank, [`Bank::info_json`] with the
+    /// kind; for a configuration or preset, its kind, spacing and height unit. With a
+    /// layer, its pattern and age under `"imperfection"`.
+    pub fn info_json(&self) -> serde_json::Value {
+        let mut info = match self.bank() {
+            Some(bank) => bank.info_json(self.file_bytes),
+            None => serde_json::json!({
+                "spacing_um": self.spacing_um(),
+                "height_unit": self.height_unit(),
+            }),
+        };
+        info["kind"] = self.kind().name().into();
+        if let Some((config, _)) = self.imperfection() {
+            info["imperfection"] = serde_json::json!({
+                "pattern": config.pattern,
+                "age": config.age,
+            });
+        }
+        info
     }
 
     /// How it is shaded by default: a model's material, the default material otherwise.

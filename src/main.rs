@@ -478,13 +478,16 @@ enum Command {
         #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
         spacing: f64,
     },
-    /// Describe a bank.
+    /// Describe a bank, a milling or model .toml, or a preset.
     Info {
-        /// Bank file.
-        bank: PathBuf,
-        /// Print JSON.
+        /// Bank file, milling or model configuration (.toml), or preset name.
+        source: PathBuf,
+        /// Print JSON (what the Python package's `Source.info` holds).
         #[arg(long)]
         json: bool,
+        /// Pixel spacing of a milling source, in µm.
+        #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
+        spacing: f64,
     },
     /// Quality figures of B (a synthesis) against A (an exemplar), as JSON.
     Stats {
@@ -1209,36 +1212,48 @@ fn run(command: Command) -> Result<()> {
             println!("{}", text.join(" "));
             Ok(())
         }
-        Command::Info { bank, json } => {
-            let bytes = std::fs::metadata(&bank).map(|m| m.len()).ok();
-            let b = surftile::kinds::read_bank(&bank)?;
+        Command::Info {
+            source,
+            json,
+            spacing,
+        } => {
+            let spec = surftile::Open::new(&source).spacing_um(spacing).open()?;
             if json {
-                println!("{:#}", b.info_json(bytes));
-            } else {
-                let h = &b.header;
-                println!("bank        {}", bank.display());
-                for line in surftile::kinds::describe(&b)? {
-                    println!("{line}");
-                }
-                println!("method      {}", h.method);
-                println!(
-                    "tiles       {} of {}×{} px, {} channel(s), {} mip levels",
-                    h.tiles,
-                    h.tile_size[0],
-                    h.tile_size[1],
-                    h.channels,
-                    h.levels.len()
-                );
-                match h.spacing_um {
-                    Some(s) => println!("spacing     {s} µm per pixel"),
-                    None => println!("spacing     unknown"),
-                }
-                println!(
-                    "exemplar    {} ({}×{})",
-                    h.exemplar.source, h.exemplar.width, h.exemplar.height
-                );
-                println!("bake        {}", h.bake);
+                println!("{:#}", spec.info_json());
+                return Ok(());
             }
+            let Some(b) = spec.bank() else {
+                println!("source      {}", source.display());
+                println!("kind        {}", spec.kind().name());
+                match spec.spacing_um() {
+                    Some(s) => println!("spacing     {s} µm per pixel"),
+                    None => println!("spacing     none (heights in pixels)"),
+                }
+                return Ok(());
+            };
+            let h = &b.header;
+            println!("bank        {}", source.display());
+            for line in surftile::kinds::describe(b)? {
+                println!("{line}");
+            }
+            println!("method      {}", h.method);
+            println!(
+                "tiles       {} of {}×{} px, {} channel(s), {} mip levels",
+                h.tiles,
+                h.tile_size[0],
+                h.tile_size[1],
+                h.channels,
+                h.levels.len()
+            );
+            match h.spacing_um {
+                Some(s) => println!("spacing     {s} µm per pixel"),
+                None => println!("spacing     unknown"),
+            }
+            println!(
+                "exemplar    {} ({}×{})",
+                h.exemplar.source, h.exemplar.width, h.exemplar.height
+            );
+            println!("bake        {}", h.bake);
             Ok(())
         }
         Command::Stats {

@@ -30,10 +30,11 @@ const PIECE_SAMPLES: usize = 1 << 22;
 
 /// The pieces `region` is filled in, in row-major order: (the piece, the offset of its
 /// first sample in the region). Each piece is contiguous in a row-major buffer (whole
-/// rows, or part of one row), and a surface fills any piece as it fills the whole.
-fn pieces(region: &Region) -> impl Iterator<Item = (Region, usize)> + '_ {
+/// rows, at most `max_rows` of them, or part of one row), and a surface fills any piece
+/// as it fills the whole.
+fn pieces(region: &Region, max_rows: usize) -> impl Iterator<Item = (Region, usize)> + '_ {
     let (w, h) = (region.width, region.height);
-    let rows = (PIECE_SAMPLES / w.max(1)).clamp(1, STRIP_ROWS);
+    let rows = (PIECE_SAMPLES / w.max(1)).clamp(1, max_rows.max(1));
     let cols = w.clamp(1, PIECE_SAMPLES);
     (0..h).step_by(rows).flat_map(move |row| {
         let n = rows.min(h - row);
@@ -98,14 +99,51 @@ fn fill_region(
 ) -> Result<Raster> {
     region.validate()?;
     let c = surface.channels();
-    let samples = region.width * region.height;
-    let mut data = vec![0.0f32; samples * c];
-    for (piece, at) in pieces(region) {
+    let mut data = vec![0.0f32; region.width * region.height * c];
+    fill_pieces(surface, region, &mut data, STRIP_ROWS, progress)?;
+    Raster::from_vec(region.width, region.height, c, data)
+}
+
+/// Fills `region` into the caller's buffer `out` (row-major, interleaved channels:
+/// exactly width × height × channels values) in bounded pieces. The result is
+/// identical to one [`Surface::fill`] call; the surface's scratch stays that of a piece
+/// of at most 2²² samples however large the region (what the Python package's
+/// `fill(out=…)` calls).
+pub fn fill_into(surface: &dyn Surface, region: &Region, out: &mut [f32]) -> Result<()> {
+    fill_pieces(surface, region, out, usize::MAX, &mut |_| {})
+}
+
+/// [`fill_into`] in pieces of at most `max_rows` rows, calling `progress` with the done
+/// fraction after each.
+fn fill_pieces(
+    surface: &dyn Surface,
+    region: &Region,
+    out: &mut [f32],
+    max_rows: usize,
+    progress: &mut dyn FnMut(f64),
+) -> Result<()> {
+    region.validate()?;
+    let c = surface.channels();
+    let samples = region
+        .width
+        .checked_mul(region.height)
+        .filter(|n| n.checked_mul(c) == Some(out.len()))
+        .ok_or_else(|| {
+            Error::param(
+                "output buffer",
+                format!("{} values", out.len()),
+                format!(
+                    "{}×{}×{c} values for a {}×{} region of {c} channel(s)",
+                    region.height, region.width, region.width, region.height
+                ),
+            )
+        })?;
+    for (piece, at) in pieces(region, max_rows) {
         let n = piece.width * piece.height;
-        surface.fill(&piece, &mut data[at * c..(at + n) * c])?;
+        surface.fill(&piece, &mut out[at * c..(at + n) * c])?;
         progress(((at + n) as f64 / samples as f64).min(1.0));
     }
-    Raster::from_vec(region.width, region.height, c, data)
+    Ok(())
 }
 
 /// A surface's analytic gradient as a two-channel surface of slopes per sample
@@ -213,7 +251,7 @@ fn shade_analytic(
     let passes = if options.exaggeration.is_some() { 1 } else { 2 };
     let mut buffer = Vec::new();
     let mut each_piece = |pass: usize, f: &mut dyn FnMut(&[f32])| -> Result<()> {
-        for (piece, at) in pieces(region) {
+        for (piece, at) in pieces(region, STRIP_ROWS) {
             buffer.clear();
             buffer.resize(piece.width * piece.height * 2, 0.0);
             slopes.fill(&piece, &mut buffer)?;

@@ -287,6 +287,36 @@ fn missing_file_is_refused() {
     assert_clean_failure(dir.path(), &r, "nowhere.png", "b.bank");
     let r = render(dir.path(), "nowhere.bank", ("8", "8"), "o.png", &[]);
     assert_clean_failure(dir.path(), &r, "nowhere.bank", "o.png");
+    // A file name (it has a dot; no preset has) is reported as missing, not as an
+    // unknown preset.
+    assert!(
+        r.stderr.contains("nowhere.bank: no such file, and not a preset name"),
+        "{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn info_describes_presets_and_configurations() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = |args: &[&str]| -> serde_json::Value {
+        let r = surftile(dir.path(), args);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        serde_json::from_str(&r.stdout).unwrap()
+    };
+    let milling = json(&["info", "parallel-d4-ae05", "--json", "--spacing", "3.5"]);
+    assert_eq!(
+        milling,
+        serde_json::json!({"kind": "milling", "spacing_um": 3.5, "height_unit": "um"})
+    );
+    let model = json(&["info", "rock", "--json"]);
+    assert_eq!(
+        model,
+        serde_json::json!({"kind": "models", "spacing_um": null, "height_unit": ""})
+    );
+    let r = surftile(dir.path(), &["info", "rock"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stdout.contains("kind        models"), "{}", r.stdout);
 }
 
 #[test]

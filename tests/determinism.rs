@@ -150,3 +150,31 @@ fn zoomed_out_fill_matches_block_averages() {
     let w1 = wasserstein1_standardised(&blocks, &coarse);
     assert!(w1 < 0.1, "W1 {w1}");
 }
+
+/// `render::fill_into` (the Python package's `fill(out=…)`) fills a region wider than
+/// its pieces (2²² samples) and taller than one piece's rows exactly as one
+/// `Surface::fill`, and refuses a buffer of the wrong length by name.
+#[test]
+fn fill_into_is_one_fill_and_checks_its_buffer() {
+    let s = surface();
+    let dynamic: &dyn Surface = &s;
+    for (w, h) in [(5000usize, 900usize), (1 << 22 | 3, 1)] {
+        let region = Region::new(-1e9 + 0.25, 77.5, w, h);
+        let mut whole = vec![0.0f32; w * h];
+        s.fill(&region, &mut whole).unwrap();
+        let mut pieces = vec![f32::NAN; w * h];
+        surftile::render::fill_into(dynamic, &region, &mut pieces).unwrap();
+        assert!(
+            whole.iter().zip(&pieces).all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{w}×{h}: fill_into differs from one fill"
+        );
+    }
+    let mut short = vec![0.0f32; 10];
+    let e = surftile::render::fill_into(dynamic, &Region::new(0.0, 0.0, 4, 3), &mut short)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("invalid output buffer = 10 values: expected 3×4×1 values"),
+        "{e}"
+    );
+}

@@ -46,8 +46,10 @@ const MIN_LEVEL_SIDE: usize = 4;
 pub use crate::prep::Leveling;
 
 /// How a crop is made periodic before the FFT-based methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+// The names the CLI takes (clap's kebab-case), for the Python package's keywords.
+#[serde(rename_all = "kebab-case")]
 pub enum Taper {
     /// Taper to the mean with a Hann window, variance kept by scaling every frequency
     /// alike (the bake's default). The RPN patch then has the Hann-windowed periodogram

@@ -119,6 +119,10 @@ impl Loaded for MillingSource {
         Some(self.spacing_um)
     }
 
+    fn height_unit(&self) -> String {
+        "um".into()
+    }
+
     fn milling(&self, seed: u32) -> Option<Result<MillingSurface>> {
         Some(self.make(seed))
     }

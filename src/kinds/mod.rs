@@ -129,6 +129,12 @@ pub trait Loaded: Send + Sync {
         None
     }
 
+    /// The unit of its heights: "um" for a milling surface and a height map baked
+    /// with a known spacing, "" (unknown: pixels, grey levels) otherwise.
+    fn height_unit(&self) -> String {
+        String::new()
+    }
+
     /// How it is shaded by default.
     fn material(&self) -> ShadeOptions {
         ShadeOptions::default()
@@ -183,6 +189,12 @@ pub fn describe(bank: &Bank) -> Result<Vec<String>> {
     of_bank(bank).describe_bank(bank)
 }
 
+/// A bank (read from a file, or just baked) as a source.
+pub fn bank_source(bank: Bank) -> Result<Box<dyn Loaded>> {
+    check(&bank, "in memory")?;
+    Ok(Box::new(BankSource(bank)))
+}
+
 /// A bank file as a source.
 struct BankSource(Bank);
 
@@ -201,6 +213,10 @@ impl Loaded for BankSource {
 
     fn spacing_um(&self) -> Option<f64> {
         self.0.header.spacing_um
+    }
+
+    fn height_unit(&self) -> String {
+        self.0.header.height_unit.clone()
     }
 
     fn milling(&self, seed: u32) -> Option<Result<crate::models::milling::MillingSurface>> {
@@ -237,6 +253,17 @@ pub fn load(path: &Path, options: LoadOptions) -> Result<Box<dyn Loaded>> {
         if let Some(loaded) = kind.load(spec, options) {
             return loaded;
         }
+    }
+    // A file name that is not there (no preset name has a dot, though a milling
+    // preset may be named with `.toml`).
+    if matches!(spec, Spec::Name(name) if name.contains('.')) {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "no such file, and not a preset name",
+            ),
+        ));
     }
     Err(unknown(path))
 }

@@ -17,8 +17,10 @@ use resample::{DownsampleFilter, downsample};
 pub const MAX_VALUE: f32 = 1e30;
 
 /// Plane levelling before analysis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+// The names the CLI takes (clap's kebab-case), for the Python package's keywords.
+#[serde(rename_all = "kebab-case")]
 pub enum Leveling {
     /// Subtract the least-squares plane from height maps (1 channel), leave colour as is.
     Auto,
