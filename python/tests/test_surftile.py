@@ -267,6 +267,13 @@ def test_bad_input_raises_the_named_exceptions(banks, tmp_path):
         surftile.open(tmp_path / "missing.bank")
     with pytest.raises(FileNotFoundError, match=r"missing\.bank: no such file"):
         surftile.open("missing.bank")
+    with pytest.raises(IsADirectoryError):  # an OSError: a folder is no bank
+        surftile.open(tmp_path)
+    with pytest.raises(FileNotFoundError, match=r"no-folder"):
+        surftile.bake(np.random.default_rng(0).normal(size=(64, 64)), method="rpn").save(
+            tmp_path / "no-folder" / "b.bank"
+        )
+    assert not (tmp_path / "no-folder").exists()
     with pytest.raises(ValueError, match=r"invalid source = no-such-preset"):
         surftile.open("no-such-preset")
     corrupt = tmp_path / "corrupt.bank"
