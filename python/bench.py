@@ -12,7 +12,9 @@
 
 Unless ``--no-rust``, it runs the two criterion benches (``cargo bench``, which compiles
 them if needed) in the same run, in rounds interleaved with the Python timings, and
-prints the ratios of the medians. Medians throughout.
+prints the median of the rounds' ratios: on a shared machine whose speed drifts by
+±10% from minute to minute, a round's two figures are taken close together. Medians
+throughout.
 """
 
 import argparse
@@ -64,7 +66,7 @@ def main():
     parser.add_argument("--no-rust", action="store_true", help="skip the criterion benches")
     parser.add_argument("--runs", type=int, default=15, help="timed Python runs per figure and round")
     parser.add_argument(
-        "--rounds", type=int, default=3,
+        "--rounds", type=int, default=5,
         help="rounds of criterion then Python, interleaved so that a drift of the machine's speed hits both",
     )
     args = parser.parse_args()
@@ -99,10 +101,11 @@ def main():
         print(f"{what}: Python {p * 1e3:7.1f} ms ({unit_count / p / 1e6:.2f} M {unit}/s)")
         if rust_times:
             r = statistics.median(rust_times)
-            rounds = ", ".join(f"{a / b:.3f}" for a, b in zip(py_times, rust_times))
+            ratios = [a / b for a, b in zip(py_times, rust_times)]
+            rounds = ", ".join(f"{x:.3f}" for x in ratios)
             print(
-                f"{'':{len(what)}}  Rust   {r * 1e3:7.1f} ms ({rust_name}); "
-                f"Python / Rust = {p / r:.3f} (rounds: {rounds})"
+                f"{'':{len(what)}}  Rust   {r * 1e3:7.1f} ms ({rust_name}); Python / Rust: "
+                f"{statistics.median(ratios):.3f}, the median of the rounds' ratios ({rounds})"
             )
 
     show(f"fill {SIDE}² out=", fills, rust_fills, f"fill/step1_{SIDE}", SIDE * SIDE, "samples")
