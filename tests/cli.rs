@@ -290,7 +290,8 @@ fn missing_file_is_refused() {
     // A file name (it has a dot; no preset has) is reported as missing, not as an
     // unknown preset.
     assert!(
-        r.stderr.contains("nowhere.bank: no such file, and not a preset name"),
+        r.stderr
+            .contains("nowhere.bank: no such file, and not a preset name"),
         "{}",
         r.stderr
     );

@@ -165,7 +165,10 @@ fn fill_into_is_one_fill_and_checks_its_buffer() {
         let mut pieces = vec![f32::NAN; w * h];
         surftile::render::fill_into(dynamic, &region, &mut pieces).unwrap();
         assert!(
-            whole.iter().zip(&pieces).all(|(a, b)| a.to_bits() == b.to_bits()),
+            whole
+                .iter()
+                .zip(&pieces)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
             "{w}×{h}: fill_into differs from one fill"
         );
     }

@@ -27,7 +27,7 @@ use surftile::bake::{Baker, BakerBuilder, Leveling};
 use surftile::bank::Method;
 use surftile::error::Error;
 use surftile::imperfect::Imperfect;
-use surftile::io::{ImageFile, ReadOptions, read_image};
+use surftile::io::{ImageFile, MAX_IMAGE_PIXELS, ReadOptions, read_image};
 use surftile::models::synth::SynthParams;
 use surftile::raster::Raster;
 use surftile::render::{MAX_IMPERFECT_SAMPLES, MAX_RENDER_SAMPLES, checked_size, fill_into};
@@ -142,6 +142,22 @@ fn raster_from_array(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Raster> {
             ));
         }
     };
+    // The readers' limits, before the copy: no empty image, at most 2^25 pixels.
+    match w.checked_mul(h) {
+        Some(0) => {
+            return Err(bad(
+                name,
+                format!("an empty array of shape {shape:?}"),
+                "at least one row and one column",
+            ));
+        }
+        Some(n) if n <= MAX_IMAGE_PIXELS => {}
+        _ => {
+            return Err(py_err(Error::Limits(format!(
+                "{name}: an array of {h}×{w} pixels (at most {MAX_IMAGE_PIXELS}, as for image files)"
+            ))));
+        }
+    }
     let arr = np.call_method1("ascontiguousarray", (arr, "float32"))?;
     let arr: PyReadonlyArrayDyn<'_, f32> = arr.extract()?;
     let data = arr

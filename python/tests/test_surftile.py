@@ -291,6 +291,10 @@ def test_bad_input_raises_the_named_exceptions(banks, tmp_path):
         surftile.bake(nan, method="rpn")
     with pytest.raises(ValueError, match=r"invalid exemplar = an array of shape \[4, 4, 4, 4\]"):
         surftile.bake(np.zeros((4, 4, 4, 4)), method="rpn")
+    with pytest.raises(ValueError, match=r"invalid exemplar = an empty array of shape \[0, 5\]"):
+        surftile.bake(np.zeros((0, 5)), method="rpn")
+    with pytest.raises(ValueError, match=r"too large: exemplar: an array of 1×40000000 pixels"):
+        surftile.bake(np.broadcast_to(np.float32(0), (1, 40_000_000)), method="rpn")
     with pytest.raises(ValueError, match=r"invalid exemplar = an array of dtype complex128"):
         surftile.bake(np.zeros((64, 64), complex), method="rpn")
     with pytest.raises(ValueError, match=r"invalid keyword = blok: expected one of"):
