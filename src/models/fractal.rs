@@ -31,7 +31,7 @@
 
 use std::ops::Range;
 
-use crate::error::{Error, Result, positive_param};
+use crate::error::{Error, MAX_PARAMETER, Result, positive_param, short};
 use crate::hash::{hash_tile_keyed, pcg4d};
 use crate::stream::{Region, Surface, fill_rows_by_sample, in_range};
 
@@ -115,7 +115,35 @@ impl FractalParams {
             self.amplitude,
             "a positive, finite displacement scale S⁽⁰⁾",
         )?;
+        if self.kind == FractalKind::Casting {
+            let bound = self.casting_bound();
+            if !bound.is_finite() || bound > MAX_PARAMETER {
+                return Err(Error::param(
+                    "amplitude",
+                    short(self.amplitude),
+                    format!(
+                        "for casting, an S⁽⁰⁾ whose heights stay within 1e30: eq. (7) scales each level's displacement by the range of its parents, so heights can grow to S⁽⁰⁾·(½ + Π(1 + S⁽ⁿ⁾)) = {} here (h = {}, levels = {})",
+                        short(bound),
+                        self.h,
+                        self.levels
+                    ),
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// The largest |height| eq. (7) can reach: corners within ±S⁽⁰⁾/2, and each level n
+    /// widens the range of its parents by at most the factor 1 + S⁽ⁿ⁾ (|g| < ½ on
+    /// either side), so heights stay within S⁽⁰⁾·(½ + Π_{n=1..L}(1 + S⁽ⁿ⁾)).
+    fn casting_bound(&self) -> f64 {
+        let q = 0.5f64.powf(self.h);
+        let (mut s, mut product) = (self.amplitude, 1.0f64);
+        for _ in 1..=self.levels {
+            s *= q;
+            product *= 1.0 + s;
+        }
+        self.amplitude * (0.5 + product)
     }
 }
 
@@ -685,5 +713,42 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("amplitude"), "{e}");
+    }
+
+    /// Eq. (7) multiplies each level's displacement by its parents' range, so a large
+    /// S⁽⁰⁾ overflows to ±inf (the fuzzer's `[fractal] kind = "casting", h = 1,
+    /// amplitude = 42949672961` sampled −inf at (0.5, 0.25)). Such amplitudes are
+    /// refused by their growth bound, and the bound holds on rendered heights.
+    #[test]
+    fn casting_amplitudes_that_overflow_are_refused_and_the_bound_holds() {
+        let casting = |amplitude: f64, h: f64, levels: u32| FractalParams {
+            kind: FractalKind::Casting,
+            amplitude,
+            h,
+            levels,
+            ..Default::default()
+        };
+        let e = FractalSurface::new(casting(42949672961.0, 1.0, 8), 0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("invalid amplitude = 42949672961: expected for casting"),
+            "{e}"
+        );
+        assert!(FractalSurface::new(casting(1e6, 0.7, 8), 0).is_err());
+        for (a, h, levels) in [(1.0, 0.7, 8), (6.0, 0.3, 10), (100.0, 1.0, 8)] {
+            let p = casting(a, h, levels);
+            let bound = p.casting_bound();
+            assert!(bound.is_finite() && bound <= MAX_PARAMETER);
+            let s = FractalSurface::new(p, 3).unwrap();
+            let mut v = vec![0.0f32; 256 * 256];
+            s.fill(&Region::new(-1e6, 7.5, 256, 256), &mut v).unwrap();
+            let top = v.iter().fold(0.0f32, |m, x| m.max(x.abs())) as f64;
+            assert!(
+                top.is_finite() && top <= bound,
+                "S0 {a}: |h| {top} > bound {bound}"
+            );
+            assert!(top > 0.0);
+        }
     }
 }
