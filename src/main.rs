@@ -17,7 +17,10 @@ use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::models::rsgf::{Join, Metric};
 use surftile::models::synth::SynthParams;
 use surftile::prep::resample::DownsampleFilter;
-use surftile::render::{LayerOutputs, checked_size, render_imperfect, render_to_file};
+use surftile::render::{
+    LayerOutputs, MaskIds, checked_size, render_imperfect_with_ids, render_to_file,
+    render_with_mask,
+};
 use surftile::sandblast::Sandblast;
 use surftile::shade::ShadeOptions;
 use surftile::stream::{Region, Surface};
@@ -361,10 +364,16 @@ enum Command {
         /// configuration's, 1 for the presets).
         #[arg(long, allow_negative_numbers = true)]
         age: Option<f64>,
-        /// With --imperfect: the layer id of every pixel as an 8-bit grey PNG (0 intact;
-        /// dust and patina 1; peeling 1, 2, … for each layer lost).
+        /// With --imperfect or --defects: the layer id of every pixel as an 8-bit grey
+        /// PNG (0 intact; dust and patina 1; peeling 1, 2, … for each layer lost;
+        /// defects 16 scratch, 17 dent, 18 pits, over the layer's ids).
         #[arg(long)]
         mask: Option<PathBuf>,
+        /// Defects in the surface (a .toml of [[defect]] entries, or a preset:
+        /// scratches, dents, pits), placed with the seed; lengths and depths in µm at
+        /// the source's spacing (or --spacing where it has none).
+        #[arg(long)]
+        defects: Option<PathBuf>,
         /// With --imperfect: the tendency T ∈ [0, 1] as a float image (.tif or .npy).
         #[arg(long)]
         tendency: Option<PathBuf>,
@@ -959,6 +968,7 @@ fn run(command: Command) -> Result<()> {
             mask,
             tendency,
             colour,
+            defects,
             gpu,
         } => {
             let region = window.region(step)?;
@@ -971,7 +981,7 @@ fn run(command: Command) -> Result<()> {
             if imperfect.is_none() {
                 let given = [
                     ("age", age.is_some()),
-                    ("mask", mask.is_some()),
+                    ("mask", mask.is_some() && defects.is_none()),
                     ("tendency", tendency.is_some()),
                     ("colour", colour.is_some()),
                 ];
@@ -1016,18 +1026,41 @@ fn run(command: Command) -> Result<()> {
                 Some(s) => s,
                 None => spec.loaded().surface(seed)?,
             };
+            // Defects go into the surface, under an imperfection layer.
+            let defects = match &defects {
+                None => None,
+                Some(path) => {
+                    let config = surftile::defects::DefectConfig::load(path)?;
+                    let spacing_um = spec.spacing_um().unwrap_or(spacing);
+                    Some(surftile::defects::Defects::new(
+                        &config,
+                        spacing_um,
+                        &spec.height_unit(),
+                        seed,
+                    )?)
+                }
+            };
+            let surface: Box<dyn Surface> = match &defects {
+                None => surface,
+                Some(d) => Box::new(surftile::defects::Defected::new(surface, d.clone())?),
+            };
+            let defect_ids = |r: &surftile::Region, ids: &mut [u8]| match &defects {
+                Some(d) => d.fill_ids(r, ids),
+                None => Ok(()),
+            };
             let start = Instant::now();
             if let Some((config, _)) = spec.imperfection() {
                 let layer = spec
                     .imperfect_over(surface, seed)
                     .expect("a source with a layer")?;
-                render_imperfect(
+                render_imperfect_with_ids(
                     &layer,
                     &region,
                     &out,
                     shading.as_ref(),
                     spec.spacing_um(),
                     outputs,
+                    defects.as_ref().map(|_| &defect_ids as MaskIds),
                     &mut progress_reporter("render"),
                 )?;
                 eprintln!(
@@ -1039,12 +1072,13 @@ fn run(command: Command) -> Result<()> {
                 );
                 return Ok(());
             }
-            render_to_file(
+            render_with_mask(
                 surface.as_ref(),
                 &region,
                 &out,
                 shading.as_ref(),
                 spec.spacing_um(),
+                mask.as_deref().map(|m| (m, &defect_ids as MaskIds)),
                 &mut progress_reporter("render"),
             )?;
             eprintln!(

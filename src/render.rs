@@ -327,6 +327,49 @@ impl LayerOutputs<'_> {
     }
 }
 
+/// Mask ids of another layer over a region, row-major (0: none): a defect layer's
+/// ([`crate::defects::Defected::fill_ids`]). Where non-zero they take precedence over
+/// an imperfection layer's ids.
+pub type MaskIds<'a> = &'a (dyn Fn(&Region, &mut [u8]) -> Result<()> + Sync);
+
+/// Renders `surface` (heights, or shaded) to `out`, and with `mask` = (path, ids) the
+/// ids over the region to that path as an 8-bit grey PNG; both appear or neither does.
+pub fn render_with_mask(
+    surface: &dyn Surface,
+    region: &Region,
+    out: &Path,
+    shading: Option<&ShadeOptions>,
+    spacing_um: Option<f64>,
+    mask: Option<(&Path, MaskIds)>,
+    progress: &mut dyn FnMut(f64),
+) -> Result<()> {
+    let Some((mask, ids)) = mask else {
+        return render_to_file(surface, region, out, shading, spacing_um, progress);
+    };
+    LayerOutputs {
+        mask: Some(mask),
+        ..Default::default()
+    }
+    .validate()?;
+    crate::io::Staged::distinct(&[("out", out), ("mask", mask)])?;
+    region.validate()?;
+    crate::io::check_png_size(region.width, region.height)?;
+    preflight(region, out, shading, surface.channels())?;
+    let mut staged = crate::io::Staged::new();
+    render_to_file(
+        surface,
+        region,
+        &staged.path(out),
+        shading,
+        spacing_um,
+        progress,
+    )?;
+    let mut v = vec![0u8; region.width * region.height];
+    ids(region, &mut v)?;
+    write_png8(&staged.path(mask), region.width, region.height, 1, &v)?;
+    staged.commit()
+}
+
 /// Renders an imperfection layer: the weathered heights (or their shading) to `out`,
 /// and its mask and tendency where asked, all from one computation, strip by strip
 /// (identical to a whole fill: pieces agree).
@@ -337,6 +380,24 @@ pub fn render_imperfect<S: Surface>(
     shading: Option<&ShadeOptions>,
     spacing_um: Option<f64>,
     outputs: LayerOutputs,
+    progress: &mut dyn FnMut(f64),
+) -> Result<()> {
+    render_imperfect_with_ids(
+        layer, region, out, shading, spacing_um, outputs, None, progress,
+    )
+}
+
+/// [`render_imperfect`] whose mask also carries `extra` ids (a defect layer's under the
+/// imperfection layer) where they are non-zero.
+#[allow(clippy::too_many_arguments)]
+pub fn render_imperfect_with_ids<S: Surface>(
+    layer: &crate::imperfect::Imperfect<S>,
+    region: &Region,
+    out: &Path,
+    shading: Option<&ShadeOptions>,
+    spacing_um: Option<f64>,
+    outputs: LayerOutputs,
+    extra: Option<MaskIds>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
     let format = Format::from_path(out)?;
@@ -410,7 +471,16 @@ pub fn render_imperfect<S: Surface>(
             .collect()
     }
     let (gw, w, h) = (grown.width, region.width, region.height);
-    let ids = crop(&all.layers, gw, region, pad);
+    let mut ids = crop(&all.layers, gw, region, pad);
+    if let Some(extra) = extra {
+        let mut more = vec![0u8; ids.len()];
+        extra(region, &mut more)?;
+        for (id, m) in ids.iter_mut().zip(more) {
+            if m != 0 {
+                *id = m;
+            }
+        }
+    }
     // Every output appears, or none: each is staged, and all are renamed at the end.
     let mut staged = crate::io::Staged::new();
     if shading.is_none() {

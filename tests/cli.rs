@@ -1141,3 +1141,99 @@ fn wide_renders_fill_in_bounded_pieces() {
         "refused before rendering"
     );
 }
+
+/// `render --defects` (issue 35): the heights are the library's `Defected` fill, the
+/// mask its defect ids (under an imperfection layer's where both are given), and a bad
+/// configuration is one line with nothing written.
+#[test]
+fn defects_render_with_their_mask() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "render",
+        "parallel-d4-ae05",
+        "--w",
+        "200",
+        "--h",
+        "150",
+        "--x",
+        "-3000",
+        "--y",
+        "7.5",
+        "--spacing",
+        "4",
+        "--seed",
+        "6",
+        "--defects",
+        "dents",
+        "--out",
+        "h.npy",
+        "--mask",
+        "m.png",
+    ];
+    let r = surftile(dir.path(), &args);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let heights = surftile::io::read_image(&dir.path().join("h.npy"), &Default::default())
+        .unwrap()
+        .raster;
+    let mask = surftile::io::read_image(&dir.path().join("m.png"), &Default::default())
+        .unwrap()
+        .raster;
+    let source = surftile::Open::new("parallel-d4-ae05")
+        .spacing_um(4.0)
+        .open()
+        .unwrap();
+    let config = surftile::defects::DefectConfig::load(Path::new("dents")).unwrap();
+    let defects = surftile::defects::Defects::new(&config, 4.0, "um", 6).unwrap();
+    let surface =
+        surftile::defects::Defected::new(source.surface(6).unwrap(), defects.clone()).unwrap();
+    let region = surftile::Region::new(-3000.0, 7.5, 200, 150);
+    let mut expected = vec![0.0f32; 200 * 150];
+    surface.fill(&region, &mut expected).unwrap();
+    assert!(
+        heights
+            .data
+            .iter()
+            .zip(&expected)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+    let mut ids = vec![0u8; 200 * 150];
+    defects.fill_ids(&region, &mut ids).unwrap();
+    assert!(
+        ids.contains(&surftile::defects::DENT_ID),
+        "no dent in the region"
+    );
+    assert!(mask.data.iter().zip(&ids).all(|(&m, &i)| m == i as f32));
+
+    // Under a dust layer, the dents keep their id over the layer's.
+    let swap = |from: &str, to: &'static str, list: &mut Vec<&str>| {
+        let at = list.iter().position(|a| *a == from).unwrap();
+        list[at] = to;
+    };
+    let mut with_layer = args.to_vec();
+    with_layer.extend(["--imperfect", "dust"]);
+    swap("m.png", "m2.png", &mut with_layer);
+    let r = surftile(dir.path(), &with_layer);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let m2 = surftile::io::read_image(&dir.path().join("m2.png"), &Default::default())
+        .unwrap()
+        .raster;
+    for (m, &i) in m2.data.iter().zip(&ids) {
+        if i != 0 {
+            assert_eq!(*m, i as f32);
+        }
+    }
+    assert!(m2.data.contains(&1.0), "no dust in the mask");
+
+    std::fs::write(
+        dir.path().join("bad.toml"),
+        "[[defect]]\nkind = \"dent\"\ncell_um = 800.0\nprobability = 2.0\ndiameter_um = [60.0, 200.0]\ndepth_um = [2.0, 15.0]\n",
+    )
+    .unwrap();
+    let mut bad = args.to_vec();
+    swap("dents", "bad.toml", &mut bad);
+    swap("h.npy", "b.npy", &mut bad);
+    swap("m.png", "b.png", &mut bad);
+    let r = surftile(dir.path(), &bad);
+    assert_clean_failure(dir.path(), &r, "probability = 2", "b.npy");
+    assert!(!dir.path().join("b.png").exists());
+}

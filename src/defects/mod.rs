@@ -1,0 +1,862 @@
+//! Defect layers (issue 35): the flaws visual inspection looks for, added to any
+//! surface's heights in physical units, with a mask id per kind.
+//!
+//! - **scratch**: a groove along a straight or gently curved path (a circular arc of
+//!   turning angle up to `bend`), V or U profile of width w and depth D, optional pile-up
+//!   ridges of height `pile_up`·D on its flanks (from w/2 to w from the centre line), its
+//!   depth ramped in over one width at each end;
+//! - **dent**: a spherical-cap impression of diameter d and depth D (sphere radius
+//!   R = (d²/4 + D²)/(2D)) with a raised rim of height `rim`·D out to 1.3·d/2;
+//! - **pits**: a cluster of a few small spherical-cap craters within `spread` of its
+//!   centre.
+//!
+//! **Placement** is seed 004's rule for every random choice: the plane is cut into cells
+//! of `cell_um`; cell (i, j) of entry e holds one defect with probability `probability`,
+//! and its position, orientation and parameters (uniform in their ranges) come from
+//! hash(seed, i, j, stream e). A defect reaches at most one cell from its own, so a
+//! sample depends on the 3×3 cells around it: O(1) per sample, and any region filled in
+//! any split gives the same bits.
+//!
+//! **Units**: lengths in µm, converted with the source's spacing (µm per pixel); depths
+//! in µm, added to heights in µm, or converted to pixels for surfaces whose heights are
+//! in pixels (seed 001 models).
+//!
+//! **Mask**: a sample carries a defect's mask id where that defect changed it by more
+//! than [`MASK_FRACTION`] of its depth (the deepest change wins where defects overlap);
+//! elsewhere the inner surface's id (0 clean, seed 004's layer ids).
+
+use std::ops::Range;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::error::{Error, Result, finite_param, positive_param};
+use crate::hash::hash_cell;
+use crate::stream::{Region, Surface, default_threads, for_bands};
+
+/// A sample is marked where a defect changed it by more than this fraction of the
+/// defect's depth.
+pub const MASK_FRACTION: f64 = 0.05;
+
+/// Deepest defect accepted, in µm (a deep gouge in a machined part).
+pub const MAX_DEPTH_UM: f64 = 1000.0;
+
+/// Most pits in one cluster.
+pub const MAX_PITS: u32 = 16;
+
+/// Default mask ids (seed 004's layers use 1 to 15).
+pub const SCRATCH_ID: u8 = 16;
+/// See [`SCRATCH_ID`].
+pub const DENT_ID: u8 = 17;
+/// See [`SCRATCH_ID`].
+pub const PITS_ID: u8 = 18;
+
+/// Rim of a dent: from the cap's edge out to this factor of its radius.
+const RIM_REACH: f64 = 1.3;
+
+/// A range [lo, hi] a parameter is drawn from (lo = hi: fixed).
+pub type Span = [f64; 2];
+
+/// Cross profile of a scratch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Profile {
+    /// Depth falls linearly to the edges.
+    V,
+    /// Parabolic: depth·(1 − (2d/w)²).
+    U,
+}
+
+/// One `[[defect]]` entry: its kind (`kind = "scratch" | "dent" | "pits"`), its
+/// placement cells and probability, its mask id and its parameter ranges (µm unless
+/// noted). Unknown keys are refused.
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum DefectKind {
+    /// A groove along an arc.
+    Scratch {
+        /// Side of the placement cells, µm; each holds at most one defect of this
+        /// entry, which must fit within one cell of its centre.
+        cell_um: f64,
+        /// Probability that a cell holds one (0 to 1).
+        probability: f64,
+        /// The mask id of its samples (default: scratch 16, dent 17, pits 18).
+        #[serde(default)]
+        mask_id: Option<u8>,
+        /// Length of the path.
+        length_um: Span,
+        /// Width of the groove at the surface.
+        width_um: Span,
+        /// Depth at its centre line.
+        depth_um: Span,
+        /// V or U.
+        profile: Profile,
+        /// Height of the pile-up ridges, as a fraction of the depth (0: none).
+        #[serde(default)]
+        pile_up: Span,
+        /// Largest turning angle of the path over its length, radians (0: straight).
+        #[serde(default)]
+        bend: f64,
+    },
+    /// A spherical-cap impression with a raised rim.
+    Dent {
+        /// Side of the placement cells, µm; each holds at most one defect of this
+        /// entry, which must fit within one cell of its centre.
+        cell_um: f64,
+        /// Probability that a cell holds one (0 to 1).
+        probability: f64,
+        /// The mask id of its samples (default: scratch 16, dent 17, pits 18).
+        #[serde(default)]
+        mask_id: Option<u8>,
+        /// Diameter of the impression at the surface.
+        diameter_um: Span,
+        /// Depth at its centre.
+        depth_um: Span,
+        /// Rim height as a fraction of the depth.
+        #[serde(default)]
+        rim: Span,
+    },
+    /// A cluster of small craters.
+    Pits {
+        /// Side of the placement cells, µm; each holds at most one defect of this
+        /// entry, which must fit within one cell of its centre.
+        cell_um: f64,
+        /// Probability that a cell holds one (0 to 1).
+        probability: f64,
+        /// The mask id of its samples (default: scratch 16, dent 17, pits 18).
+        #[serde(default)]
+        mask_id: Option<u8>,
+        /// Number of craters (whole numbers, 1 to 16).
+        count: [u32; 2],
+        /// Diameter of each crater.
+        diameter_um: Span,
+        /// Depth of each crater.
+        depth_um: Span,
+        /// Radius of the disc their centres lie in.
+        spread_um: f64,
+    },
+}
+
+/// A `[[defect]]` entry (see [`DefectKind`]).
+pub type DefectSpec = DefectKind;
+
+impl DefectKind {
+    /// Side of the placement cells, µm.
+    pub fn cell_um(&self) -> f64 {
+        match self {
+            DefectKind::Scratch { cell_um, .. }
+            | DefectKind::Dent { cell_um, .. }
+            | DefectKind::Pits { cell_um, .. } => *cell_um,
+        }
+    }
+
+    /// Probability that a cell holds one.
+    pub fn probability(&self) -> f64 {
+        match self {
+            DefectKind::Scratch { probability, .. }
+            | DefectKind::Dent { probability, .. }
+            | DefectKind::Pits { probability, .. } => *probability,
+        }
+    }
+
+    /// Its mask id.
+    pub fn mask_id(&self) -> u8 {
+        match self {
+            DefectKind::Scratch { mask_id, .. }
+            | DefectKind::Dent { mask_id, .. }
+            | DefectKind::Pits { mask_id, .. } => mask_id.unwrap_or(self.default_id()),
+        }
+    }
+
+    fn name(&self) -> &'static str {
+        match self {
+            DefectKind::Scratch { .. } => "scratch",
+            DefectKind::Dent { .. } => "dent",
+            DefectKind::Pits { .. } => "pits",
+        }
+    }
+
+    fn default_id(&self) -> u8 {
+        match self {
+            DefectKind::Scratch { .. } => SCRATCH_ID,
+            DefectKind::Dent { .. } => DENT_ID,
+            DefectKind::Pits { .. } => PITS_ID,
+        }
+    }
+
+    /// Farthest a defect of the largest drawn parameters reaches from its centre, µm.
+    fn reach_um(&self) -> f64 {
+        match self {
+            // Half the length, plus the pile-up's width beyond the centre line (arcs
+            // are no longer than their chord's half length from the centre).
+            DefectKind::Scratch {
+                length_um,
+                width_um,
+                ..
+            } => length_um[1] / 2.0 + width_um[1],
+            DefectKind::Dent { diameter_um, .. } => RIM_REACH * diameter_um[1] / 2.0,
+            DefectKind::Pits {
+                diameter_um,
+                spread_um,
+                ..
+            } => spread_um + diameter_um[1] / 2.0,
+        }
+    }
+}
+
+/// The `[[defect]]` entries of a configuration file.
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DefectConfig {
+    /// The entries, each placed independently.
+    #[serde(default)]
+    pub defect: Vec<DefectSpec>,
+}
+
+/// Checks a range: both ends finite in `lo..=hi` bounds, lo ≤ hi.
+fn span(key: &str, s: Span, lo: f64, hi: f64, what: &str) -> Result<()> {
+    let ok = s.iter().all(|v| v.is_finite() && (lo..=hi).contains(v)) && s[0] <= s[1];
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::param(
+            key,
+            format!(
+                "[{}, {}]",
+                crate::error::short(s[0]),
+                crate::error::short(s[1])
+            ),
+            format!("[low, high] with low ≤ high, {what}"),
+        ))
+    }
+}
+
+impl DefectConfig {
+    /// Parses and checks a configuration (`what` names it in errors).
+    pub fn from_toml(text: &str, what: &str) -> Result<DefectConfig> {
+        let config: DefectConfig =
+            toml::from_str(text).map_err(|e| Error::decode(what, one_line(&e.to_string())))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Reads a `.toml`, or a preset name (`tiles/defects/`: scratches, dents, pits).
+    pub fn load(path: &Path) -> Result<DefectConfig> {
+        if !path.exists()
+            && let Some(text) = path.to_str().and_then(preset)
+        {
+            return DefectConfig::from_toml(text, &path.display().to_string());
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        DefectConfig::from_toml(&text, &path.display().to_string())
+    }
+
+    /// Checks every entry key by key.
+    pub fn validate(&self) -> Result<()> {
+        if self.defect.is_empty() {
+            return Err(Error::param(
+                "defect",
+                "no entries",
+                "at least one [[defect]] entry",
+            ));
+        }
+        for (n, d) in self.defect.iter().enumerate() {
+            let key = |k: &str| format!("defect {} ({}): {k}", n + 1, d.name());
+            positive_param(&key("cell_um"), d.cell_um(), "a cell side in µm > 0")?;
+            if !(0.0..=1.0).contains(&d.probability()) {
+                return Err(Error::param(
+                    key("probability"),
+                    crate::error::short(d.probability()),
+                    "a probability from 0 to 1",
+                ));
+            }
+            let lengths =
+                |k: &str, s: Span| span(&key(k), s, 1e-6, 1e6, "in µm, above 0 and at most 1e6");
+            let depths = |k: &str, s: Span| {
+                span(
+                    &key(k),
+                    s,
+                    1e-6,
+                    MAX_DEPTH_UM,
+                    &format!("in µm, above 0 and at most {MAX_DEPTH_UM}"),
+                )
+            };
+            let fractions =
+                |k: &str, s: Span| span(&key(k), s, 0.0, 1.0, "fractions of the depth from 0 to 1");
+            // A cap (dent, pit) is at most half a sphere: its depth at most its radius.
+            let caps = |depth_um: Span, diameter_um: Span| {
+                depths("depth_um", depth_um)?;
+                lengths("diameter_um", diameter_um)?;
+                if depth_um[1] > diameter_um[0] / 2.0 {
+                    return Err(Error::param(
+                        key("depth_um"),
+                        crate::error::short(depth_um[1]),
+                        format!(
+                            "at most the smallest radius ({} µm): a cap is at most half a sphere",
+                            crate::error::short(diameter_um[0] / 2.0)
+                        ),
+                    ));
+                }
+                Ok(())
+            };
+            match d {
+                DefectKind::Scratch {
+                    length_um,
+                    width_um,
+                    depth_um,
+                    pile_up,
+                    bend,
+                    ..
+                } => {
+                    lengths("length_um", *length_um)?;
+                    lengths("width_um", *width_um)?;
+                    depths("depth_um", *depth_um)?;
+                    fractions("pile_up", *pile_up)?;
+                    if !(0.0..=std::f64::consts::FRAC_PI_2).contains(bend) {
+                        return Err(Error::param(
+                            key("bend"),
+                            crate::error::short(*bend),
+                            "a turning angle from 0 to π/2 radians (a gently curved path)",
+                        ));
+                    }
+                }
+                DefectKind::Dent {
+                    diameter_um,
+                    depth_um,
+                    rim,
+                    ..
+                } => {
+                    caps(*depth_um, *diameter_um)?;
+                    fractions("rim", *rim)?;
+                }
+                DefectKind::Pits {
+                    count,
+                    diameter_um,
+                    depth_um,
+                    spread_um,
+                    ..
+                } => {
+                    if !(count[0] >= 1 && count[0] <= count[1] && count[1] <= MAX_PITS) {
+                        return Err(Error::param(
+                            key("count"),
+                            format!("[{}, {}]", count[0], count[1]),
+                            format!("[low, high] with 1 ≤ low ≤ high ≤ {MAX_PITS}"),
+                        ));
+                    }
+                    caps(*depth_um, *diameter_um)?;
+                    finite_param(&key("spread_um"), *spread_um, "a radius in µm ≥ 0")?;
+                    if *spread_um < 0.0 {
+                        return Err(Error::param(
+                            key("spread_um"),
+                            crate::error::short(*spread_um),
+                            "a radius in µm ≥ 0",
+                        ));
+                    }
+                }
+            }
+            let reach = d.reach_um();
+            if reach > d.cell_um() {
+                return Err(Error::param(
+                    key("cell_um"),
+                    crate::error::short(d.cell_um()),
+                    format!(
+                        "at least the defect's reach from its centre ({} µm): a defect may cross only into the cells next to its own",
+                        crate::error::short(reach)
+                    ),
+                ));
+            }
+            if d.mask_id() == 0 {
+                return Err(Error::param(
+                    key("mask_id"),
+                    0,
+                    "1 to 255 (0 marks clean samples)",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The first line of a TOML error (they span several).
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// The shipped presets, by name.
+fn preset(name: &str) -> Option<&'static str> {
+    match name {
+        "scratches" => Some(include_str!("../../tiles/defects/scratches.toml")),
+        "dents" => Some(include_str!("../../tiles/defects/dents.toml")),
+        "pits" => Some(include_str!("../../tiles/defects/pits.toml")),
+        _ => None,
+    }
+}
+
+/// Names of the presets.
+pub const PRESETS: [&str; 3] = ["scratches", "dents", "pits"];
+
+/// One placed defect, in pixels and height units.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// Centre line through (cx, cy) with tangent angle θ there, curvature κ (1/px,
+    /// signed), length, half width a, depth, pile-up height, profile.
+    Scratch {
+        c: [f64; 2],
+        theta: f64,
+        kappa: f64,
+        length: f64,
+        half_width: f64,
+        depth: f64,
+        pile_up: f64,
+        profile: Profile,
+    },
+    /// Cap of radius r0 at c, depth, sphere radius, rim height.
+    Dent {
+        c: [f64; 2],
+        r0: f64,
+        depth: f64,
+        sphere: f64,
+        rim: f64,
+    },
+    /// Craters: (centre, radius, depth, sphere radius).
+    Pits {
+        pits: Vec<([f64; 2], f64, f64, f64)>,
+    },
+}
+
+/// A placed defect: its shape (in pixels, depths too), the box it changes, its mask id.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Placed {
+    /// The shape, lengths and depths in pixels.
+    pub shape: Shape,
+    /// x0, y0, x1, y1 (pixels): nothing changes outside.
+    pub bbox: [f64; 4],
+    /// Mask id.
+    pub id: u8,
+    /// Depth in pixels, the scale of [`MASK_FRACTION`].
+    pub depth_px: f64,
+    /// Height units per pixel of depth.
+    pub z_scale: f64,
+}
+
+/// Uniform in [0, 1) from a hash word.
+fn unit(h: u32) -> f64 {
+    h as f64 / 4294967296.0
+}
+
+fn draw(s: Span, u: f64) -> f64 {
+    s[0] + (s[1] - s[0]) * u
+}
+
+/// A spherical cap of radius r0, depth d, sphere radius R, at distance r: ≤ 0 inside.
+fn cap(r: f64, r0: f64, depth: f64, sphere: f64) -> f64 {
+    if r >= r0 {
+        0.0
+    } else {
+        -depth + sphere - (sphere * sphere - r * r).max(0.0).sqrt()
+    }
+}
+
+fn sphere_radius(r0: f64, depth: f64) -> f64 {
+    (r0 * r0 + depth * depth) / (2.0 * depth)
+}
+
+impl Placed {
+    /// The height change at (x, y), in height units.
+    pub fn displacement(&self, x: f64, y: f64) -> f64 {
+        self.displacement_px(x, y) * self.z_scale
+    }
+
+    /// The height change at (x, y), in pixels.
+    fn displacement_px(&self, x: f64, y: f64) -> f64 {
+        let b = &self.bbox;
+        if x < b[0] || x > b[2] || y < b[1] || y > b[3] {
+            return 0.0;
+        }
+        match &self.shape {
+            Shape::Scratch {
+                c,
+                theta,
+                kappa,
+                length,
+                half_width: a,
+                depth,
+                pile_up,
+                profile,
+            } => {
+                let (t, n) = ([theta.cos(), theta.sin()], [-theta.sin(), theta.cos()]);
+                let (dx, dy) = (x - c[0], y - c[1]);
+                // Along-path coordinate s and signed distance d from the centre line.
+                let (s, d) = if kappa.abs() < 1e-12 {
+                    (dx * t[0] + dy * t[1], dx * n[0] + dy * n[1])
+                } else {
+                    let r = 1.0 / kappa; // signed radius: the centre is at c + r·n
+                    let (vx, vy) = (dx - r * n[0], dy - r * n[1]);
+                    // Angle from the vector centre → c (−r·n) to centre → point.
+                    let (ux, uy) = (-r * n[0], -r * n[1]);
+                    let ang = (ux * vy - uy * vx).atan2(ux * vx + uy * vy);
+                    let s = ang * r;
+                    let d = (r.abs() - (vx * vx + vy * vy).sqrt()) * r.signum();
+                    (s, d)
+                };
+                let half = length / 2.0;
+                if s.abs() > half {
+                    return 0.0;
+                }
+                // Depth ramps in over one width at each end (smoothstep).
+                let e = ((half - s.abs()) / (2.0 * a)).clamp(0.0, 1.0);
+                let e = e * e * (3.0 - 2.0 * e);
+                let q = d.abs() / a;
+                let z = if q < 1.0 {
+                    -depth
+                        * match profile {
+                            Profile::V => 1.0 - q,
+                            Profile::U => 1.0 - q * q,
+                        }
+                } else if q < 2.0 {
+                    let w = (std::f64::consts::PI * (q - 1.0)).sin();
+                    pile_up * w * w
+                } else {
+                    0.0
+                };
+                z * e
+            }
+            Shape::Dent {
+                c,
+                r0,
+                depth,
+                sphere,
+                rim,
+            } => {
+                let r = ((x - c[0]).powi(2) + (y - c[1]).powi(2)).sqrt();
+                if r < *r0 {
+                    cap(r, *r0, *depth, *sphere)
+                } else {
+                    let u = (r - r0) / ((RIM_REACH - 1.0) * r0);
+                    if u < 1.0 {
+                        let w = (std::f64::consts::PI * u).sin();
+                        rim * w * w
+                    } else {
+                        0.0
+                    }
+                }
+            }
+            Shape::Pits { pits } => pits
+                .iter()
+                .map(|(p, r0, depth, sphere)| {
+                    let r = ((x - p[0]).powi(2) + (y - p[1]).powi(2)).sqrt();
+                    cap(r, *r0, *depth, *sphere)
+                })
+                .fold(0.0, f64::min),
+        }
+    }
+}
+
+/// A defect configuration placed over surfaces of a given spacing and height unit.
+#[derive(Clone, Debug)]
+pub struct Defects {
+    config: DefectConfig,
+    seed: u32,
+    /// µm per pixel.
+    spacing_um: f64,
+    /// Height units per µm of depth (1 for heights in µm, 1/spacing for pixels).
+    z_per_um: f64,
+}
+
+/// Hash streams: one per entry, above seed 004's.
+const STREAM_BASE: u32 = 0x4446_0000; // "DF"
+
+impl Defects {
+    /// `config` over a surface of `spacing_um` µm per pixel whose heights are in
+    /// `height_unit` ("um", or "" for pixels), placed with `seed`.
+    pub fn new(
+        config: &DefectConfig,
+        spacing_um: f64,
+        height_unit: &str,
+        seed: u32,
+    ) -> Result<Defects> {
+        config.validate()?;
+        positive_param(
+            "spacing_um",
+            spacing_um,
+            "the surface's spacing in µm per pixel > 0",
+        )?;
+        let z_per_um = match height_unit {
+            "um" => 1.0,
+            "" => 1.0 / spacing_um,
+            other => {
+                return Err(Error::param(
+                    "height unit",
+                    other,
+                    "um or none (pixels): defect depths are in µm",
+                ));
+            }
+        };
+        Ok(Defects {
+            config: config.clone(),
+            seed,
+            spacing_um,
+            z_per_um,
+        })
+    }
+
+    /// The defect of entry `e` in cell (i, j), if it holds one.
+    pub fn in_cell(&self, e: usize, i: i64, j: i64) -> Option<Placed> {
+        let d = &self.config.defect[e];
+        let stream = STREAM_BASE + e as u32;
+        let h = hash_cell(self.seed, i, j, stream);
+        if unit(h[0]) >= d.probability() {
+            return None;
+        }
+        let px = 1.0 / self.spacing_um;
+        let cell = d.cell_um() * px;
+        let c = [
+            (i as f64 + unit(h[1])) * cell,
+            (j as f64 + unit(h[2])) * cell,
+        ];
+        // Further draws from a second hash of the same cell.
+        let g = hash_cell(self.seed ^ 0x9E37_79B9, i, j, stream);
+        let (shape, reach, depth_px) = match d {
+            DefectKind::Scratch {
+                length_um,
+                width_um,
+                depth_um,
+                profile,
+                pile_up,
+                bend,
+                ..
+            } => {
+                let length = draw(*length_um, unit(g[0])) * px;
+                let a = draw(*width_um, unit(g[1])) * px / 2.0;
+                let depth = draw(*depth_um, unit(g[2])) * px;
+                let turn = bend * (2.0 * unit(g[3]) - 1.0);
+                let shape = Shape::Scratch {
+                    c,
+                    theta: std::f64::consts::PI * unit(h[3]),
+                    kappa: turn / length,
+                    length,
+                    half_width: a,
+                    depth,
+                    pile_up: draw(*pile_up, unit(h[3].rotate_left(16))) * depth,
+                    profile: *profile,
+                };
+                (shape, length / 2.0 + 2.0 * a, depth)
+            }
+            DefectKind::Dent {
+                diameter_um,
+                depth_um,
+                rim,
+                ..
+            } => {
+                let r0 = draw(*diameter_um, unit(g[0])) * px / 2.0;
+                let depth = draw(*depth_um, unit(g[1])) * px;
+                let shape = Shape::Dent {
+                    c,
+                    r0,
+                    depth,
+                    sphere: sphere_radius(r0, depth),
+                    rim: draw(*rim, unit(g[2])) * depth,
+                };
+                (shape, RIM_REACH * r0, depth)
+            }
+            DefectKind::Pits {
+                count,
+                diameter_um,
+                depth_um,
+                spread_um,
+                ..
+            } => {
+                let extra = count[1] - count[0];
+                let n = count[0] + ((unit(g[0]) * (extra + 1) as f64) as u32).min(extra);
+                let mut pits = Vec::with_capacity(n as usize);
+                let (mut deepest, mut widest) = (0.0f64, 0.0f64);
+                for k in 0..n {
+                    let p = hash_cell(self.seed, i, j, stream ^ ((0x100 + k) << 8));
+                    let rad = spread_um * px * unit(p[0]).sqrt();
+                    let ang = std::f64::consts::TAU * unit(p[1]);
+                    let r0 = draw(*diameter_um, unit(p[2])) * px / 2.0;
+                    let depth = draw(*depth_um, unit(p[3])) * px;
+                    pits.push((
+                        [c[0] + rad * ang.cos(), c[1] + rad * ang.sin()],
+                        r0,
+                        depth,
+                        sphere_radius(r0, depth),
+                    ));
+                    deepest = deepest.max(depth);
+                    widest = widest.max(r0);
+                }
+                (Shape::Pits { pits }, spread_um * px + widest, deepest)
+            }
+        };
+        let r = reach + 1.0;
+        Some(Placed {
+            shape,
+            bbox: [c[0] - r, c[1] - r, c[0] + r, c[1] + r],
+            id: d.mask_id(),
+            depth_px,
+            z_scale: self.z_per_um * self.spacing_um,
+        })
+    }
+
+    /// Every defect whose box meets [x0, x1] × [y0, y1] (pixels), in a fixed order
+    /// (entry, then cell row, then cell column).
+    pub fn placed_in(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<Placed> {
+        let mut out = Vec::new();
+        for (e, d) in self.config.defect.iter().enumerate() {
+            let cell = d.cell_um() / self.spacing_um;
+            let (i0, i1) = (
+                (x0 / cell).floor() as i64 - 1,
+                (x1 / cell).floor() as i64 + 1,
+            );
+            let (j0, j1) = (
+                (y0 / cell).floor() as i64 - 1,
+                (y1 / cell).floor() as i64 + 1,
+            );
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    if let Some(p) = self.in_cell(e, i, j) {
+                        let b = p.bbox;
+                        if b[0] <= x1 && b[2] >= x0 && b[1] <= y1 && b[3] >= y0 {
+                            out.push(p);
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The defects whose boxes meet `region`.
+    pub fn placed_over(&self, region: &Region) -> Vec<Placed> {
+        let (xa, xb) = (region.x_at(0), region.x_at(region.width.saturating_sub(1)));
+        let (ya, yb) = (region.y_at(0), region.y_at(region.height.saturating_sub(1)));
+        self.placed_in(xa.min(xb), ya.min(yb), xa.max(xb), ya.max(yb))
+    }
+
+    /// The mask ids over `region` (0 where no defect changed a sample by more than
+    /// [`MASK_FRACTION`] of its depth), row-major.
+    pub fn fill_ids(&self, region: &Region, ids: &mut [u8]) -> Result<()> {
+        region.validate()?;
+        if ids.len() != region.width * region.height {
+            return Err(Error::param(
+                "mask buffer",
+                format!("{} values", ids.len()),
+                format!(
+                    "{} for a {}×{} region",
+                    region.width * region.height,
+                    region.width,
+                    region.height
+                ),
+            ));
+        }
+        let placed = self.placed_over(region);
+        for (k, id) in ids.iter_mut().enumerate() {
+            let (col, row) = (k % region.width, k / region.width);
+            *id = Defects::at(&placed, region.x_at(col), region.y_at(row)).1;
+        }
+        Ok(())
+    }
+
+    /// The height change at (x, y) and the mask id it sets (0: none), over `placed`.
+    pub fn at(placed: &[Placed], x: f64, y: f64) -> (f64, u8) {
+        let (mut sum, mut id, mut strongest) = (0.0, 0u8, 0.0);
+        for p in placed {
+            let v = p.displacement_px(x, y);
+            if v != 0.0 {
+                sum += v * p.z_scale;
+                let rel = v.abs() / p.depth_px;
+                if rel > MASK_FRACTION && rel > strongest {
+                    strongest = rel;
+                    id = p.id;
+                }
+            }
+        }
+        (sum, id)
+    }
+}
+
+/// `inner` (one channel of heights) with defects added.
+pub struct Defected<S> {
+    inner: S,
+    defects: Defects,
+}
+
+impl<S: Surface> Defected<S> {
+    /// `defects` over `inner`, which must have one channel (heights).
+    pub fn new(inner: S, defects: Defects) -> Result<Defected<S>> {
+        if inner.channels() != 1 {
+            return Err(Error::param(
+                "defects",
+                format!("over a surface of {} channels", inner.channels()),
+                "a height surface (one channel): defects change heights",
+            ));
+        }
+        Ok(Defected { inner, defects })
+    }
+
+    /// The defects.
+    pub fn defects(&self) -> &Defects {
+        &self.defects
+    }
+
+    /// The surface under the defects.
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+
+    /// The defects placed over `region`.
+    pub fn placed_over(&self, region: &Region) -> Vec<Placed> {
+        self.defects.placed_over(region)
+    }
+
+    /// The defects' mask ids over `region` ([`Defects::fill_ids`]).
+    pub fn fill_ids(&self, region: &Region, ids: &mut [u8]) -> Result<()> {
+        self.defects.fill_ids(region, ids)
+    }
+
+    /// Adds the defects of `placed` to rows `rows` of `region` in `out`.
+    fn add_rows(placed: &[Placed], region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        for (r, row) in rows.zip(out.chunks_mut(region.width)) {
+            let y = region.y_at(r);
+            for (col, v) in row.iter_mut().enumerate() {
+                let (dz, _) = Defects::at(placed, region.x_at(col), y);
+                if dz != 0.0 {
+                    *v = (*v as f64 + dz) as f32;
+                }
+            }
+        }
+    }
+}
+
+impl<S: Surface> Surface for Defected<S> {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    fn sample_footprint(&self, x: f64, y: f64, footprint: f64, out: &mut [f32]) {
+        self.inner.sample_footprint(x, y, footprint, out);
+        let placed = self.defects.placed_in(x, y, x, y);
+        let (dz, _) = Defects::at(&placed, x, y);
+        if dz != 0.0 {
+            out[0] = (out[0] as f64 + dz) as f32;
+        }
+    }
+
+    fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        self.inner.fill_rows(region, rows.clone(), out);
+        let part = region.sub(0, rows.start, region.width, rows.len());
+        let placed = match part {
+            Ok(p) => self.placed_over(&p),
+            Err(_) => return,
+        };
+        Self::add_rows(&placed, region, rows, out);
+    }
+
+    fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
+        self.inner.fill(region, out)?;
+        let placed = self.placed_over(region);
+        for_bands(region, 1, out, default_threads(), 16, |rows, chunk| {
+            Self::add_rows(&placed, region, rows, chunk)
+        })
+    }
+}
