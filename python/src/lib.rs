@@ -234,7 +234,8 @@ impl Source {
         json_to_py(py, &self.inner.info_json())
     }
 
-    /// The kind of source: "bank" rules (rpn, roller, rsgf, …), "milling" or "model".
+    /// The registry's kind: "blend" (rpn, adsn banks), "toroidal" (roller), "wang"
+    /// (quilt), "rsgf", "synth", "milling" (banks, configurations, presets) or "models".
     #[getter]
     fn kind(&self) -> &'static str {
         self.inner.kind().name()
