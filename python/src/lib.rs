@@ -104,6 +104,12 @@ fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py
     })
 }
 
+/// A numpy array that is not one contiguous slice (the arrays here are made
+/// contiguous first, so this is not expected).
+fn slice_err(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
 /// A seed in the 32-bit range placements use.
 fn seed32(seed: i64) -> PyResult<u32> {
     u32::try_from(seed).map_err(|_| bad("seed", seed, "a whole number from 0 to 2^32 − 1"))
@@ -195,6 +201,12 @@ struct Source {
     spec: String,
 }
 
+/// `Source.surface` and `Bank.surface`: the seed checked, the GIL released.
+fn place(py: Python<'_>, source: &surftile::Source, seed: i64) -> PyResult<Surface> {
+    let seed = seed32(seed)?;
+    py.detach(|| make_surface(source, seed)).py()
+}
+
 /// The surface of `source` placed with `seed`, its layer kept typed for the mask.
 fn make_surface(source: &surftile::Source, seed: u32) -> surftile::Result<Surface> {
     let plain = source.loaded().surface(seed)?;
@@ -221,8 +233,7 @@ impl Source {
     /// model's random draws, an imperfection layer's noise. Cheap to call again.
     #[pyo3(signature = (seed=0))]
     fn surface(&self, py: Python<'_>, seed: i64) -> PyResult<Surface> {
-        let seed = seed32(seed)?;
-        py.detach(|| make_surface(&self.inner, seed)).py()
+        place(py, &self.inner, seed)
     }
 
     /// What `surftile info --json SPEC` prints, as a dict: for a bank its method,
@@ -369,14 +380,10 @@ impl Surface {
         let out = PyArray::<f32, _>::zeros(py, shape.as_slice(), false);
         {
             let mut w = out.readwrite();
-            let o = w
-                .as_slice_mut()
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let o = w.as_slice_mut().map_err(slice_err)?;
             let (xv, yv) = (
-                xs.as_slice()
-                    .map_err(|e| PyValueError::new_err(e.to_string()))?,
-                ys.as_slice()
-                    .map_err(|e| PyValueError::new_err(e.to_string()))?,
+                xs.as_slice().map_err(slice_err)?,
+                ys.as_slice().map_err(slice_err)?,
             );
             let s = self.inner.get();
             py.detach(|| {
@@ -434,9 +441,7 @@ impl Surface {
                     format!("one not in use ({e})"),
                 )
             })?;
-            let buf = w
-                .as_slice_mut()
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let buf = w.as_slice_mut().map_err(slice_err)?;
             let s = self.inner.get();
             py.detach(|| fill_into(s, &region, buf)).py()?;
         }
@@ -473,12 +478,8 @@ impl Surface {
         let mask = PyArray::<u8, _>::zeros(py, [region.height, region.width], false);
         {
             let (mut hw, mut mw) = (heights.readwrite(), mask.readwrite());
-            let hs = hw
-                .as_slice_mut()
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let ms = mw
-                .as_slice_mut()
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let hs = hw.as_slice_mut().map_err(slice_err)?;
+            let ms = mw.as_slice_mut().map_err(slice_err)?;
             py.detach(|| -> surftile::Result<()> {
                 // Strips of bounded size: a layer fills any part as it fills the whole.
                 let rows = (1usize << 22).div_ceil(region.width).max(1);
@@ -585,8 +586,7 @@ impl Bank {
     /// The bank's endless surface placed with `seed`.
     #[pyo3(signature = (seed=0))]
     fn surface(&self, py: Python<'_>, seed: i64) -> PyResult<Surface> {
-        let seed = seed32(seed)?;
-        py.detach(|| make_surface(&self.source, seed)).py()
+        place(py, &self.source, seed)
     }
 
     /// What `surftile info --json` prints for the saved file (without its size).
@@ -613,54 +613,49 @@ impl Bank {
     }
 }
 
-/// A keyword's value as a string naming one of an enum's values (serde's names, which
-/// are the CLI's).
+/// The error for a keyword whose value is not of the type it takes.
+fn wrong_type(name: &str, value: &Bound<'_, PyAny>, expected: &str) -> PyErr {
+    let shown = value.repr().map(|r| r.to_string()).unwrap_or_default();
+    bad(name, shown, expected)
+}
+
+/// The enum value serde (and the CLI) call `text`; `names` lists them for the error.
+fn named<T: serde::de::DeserializeOwned>(name: &str, text: &str, names: &str) -> PyResult<T> {
+    serde_json::from_value(serde_json::Value::String(text.into()))
+        .map_err(|_| bad(name, format!("{text:?}"), format!("one of {names}")))
+}
+
+/// A keyword's value as a string naming one of an enum's values.
 fn enum_param<T: serde::de::DeserializeOwned>(
     name: &str,
     value: &Bound<'_, PyAny>,
     names: &str,
 ) -> PyResult<T> {
-    let text: String = value.extract().map_err(|_| {
-        bad(
-            name,
-            value.repr().map(|r| r.to_string()).unwrap_or_default(),
-            format!("one of {names}"),
-        )
-    })?;
-    serde_json::from_value(serde_json::Value::String(text.clone()))
-        .map_err(|_| bad(name, format!("{text:?}"), format!("one of {names}")))
+    let text: String = value
+        .extract()
+        .map_err(|_| wrong_type(name, value, &format!("one of {names}")))?;
+    named(name, &text, names)
 }
 
 /// A keyword's value as a count (a whole number ≥ 0).
 fn count_param(name: &str, value: &Bound<'_, PyAny>) -> PyResult<usize> {
-    let v: i64 = value.extract().map_err(|_| {
-        bad(
-            name,
-            value.repr().map(|r| r.to_string()).unwrap_or_default(),
-            "a whole number",
-        )
-    })?;
+    let v: i64 = value
+        .extract()
+        .map_err(|_| wrong_type(name, value, "a whole number"))?;
     usize::try_from(v).map_err(|_| bad(name, v, "a whole number ≥ 0"))
 }
 
 fn float_param(name: &str, value: &Bound<'_, PyAny>) -> PyResult<f64> {
-    value.extract().map_err(|_| {
-        bad(
-            name,
-            value.repr().map(|r| r.to_string()).unwrap_or_default(),
-            "a number",
-        )
-    })
+    value
+        .extract()
+        .map_err(|_| wrong_type(name, value, "a number"))
 }
 
 fn bool_param(name: &str, value: &Bound<'_, PyAny>) -> PyResult<bool> {
-    value.cast::<PyBool>().map(|b| b.is_true()).map_err(|_| {
-        bad(
-            name,
-            value.repr().map(|r| r.to_string()).unwrap_or_default(),
-            "True or False",
-        )
-    })
+    value
+        .cast::<PyBool>()
+        .map(|b| b.is_true())
+        .map_err(|_| wrong_type(name, value, "True or False"))
 }
 
 /// Two integers, from a tuple/list or a string "a,b" (or "aXb" with `sep` = 'x').
@@ -668,13 +663,7 @@ fn pair_param(name: &str, value: &Bound<'_, PyAny>, sep: char) -> PyResult<(i64,
     if let Ok(p) = value.extract::<(i64, i64)>() {
         return Ok(p);
     }
-    let wrong = || {
-        bad(
-            name,
-            value.repr().map(|r| r.to_string()).unwrap_or_default(),
-            "two whole numbers",
-        )
-    };
+    let wrong = || wrong_type(name, value, "two whole numbers");
     let text: String = value.extract().map_err(|_| wrong())?;
     let (a, b) = text
         .split_once([sep, sep.to_ascii_uppercase()])
@@ -846,14 +835,11 @@ fn bake(
     seed: i64,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Bank> {
-    let method: Method =
-        serde_json::from_value(serde_json::Value::String(method.into())).map_err(|_| {
-            bad(
-                "method",
-                format!("{method:?}"),
-                "one of auto, rpn, adsn, roller, rsgf, quilt, synth, milling",
-            )
-        })?;
+    let method: Method = named(
+        "method",
+        method,
+        "auto, rpn, adsn, roller, rsgf, quilt, synth, milling",
+    )?;
     let seed = u64::try_from(seed).map_err(|_| bad("seed", seed, "a whole number ≥ 0"))?;
     let mut log = Vec::new();
     let bank = if method == Method::Milling {
@@ -918,8 +904,7 @@ fn stats<'py>(
     let cell = cell
         .map(|c| usize::try_from(c).map_err(|_| bad("cell", c, "a size in pixels ≥ 0")))
         .transpose()?;
-    let leveling: Leveling = serde_json::from_value(serde_json::Value::String(level.into()))
-        .map_err(|_| bad("level", format!("{level:?}"), "one of auto, plane, none"))?;
+    let leveling: Leveling = named("level", level, "auto, plane, none")?;
     let (ia, wa) = image_from("a", a)?;
     let (ib, wb) = image_from("b", b)?;
     let options = surftile::stats::CompareOptions {
