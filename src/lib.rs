@@ -45,6 +45,7 @@
 pub mod analysis;
 pub mod bake;
 pub mod bank;
+pub mod dataset;
 pub mod defects;
 #[cfg(feature = "cli")]
 pub mod demo;

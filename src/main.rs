@@ -537,6 +537,25 @@ enum Command {
         #[arg(long)]
         raw_shape: Option<String>,
     },
+    /// Generate a training dataset: WebDataset tar shards of samples drawn from a spec
+    /// (sources, imperfection layers, defects), deterministic, resumable, on all cores.
+    Dataset {
+        /// The dataset spec (.toml): [dataset], [[source]], [[layer]], [[defect]]; see
+        /// docs/dataset.md and tiles/dataset/example.toml.
+        spec: PathBuf,
+        /// Output folder: shard-NNNNNN.tar and dataset.json.
+        #[arg(long)]
+        out: PathBuf,
+        /// Only shards A to B-1 (another machine makes the rest), e.g. 0..4.
+        #[arg(long, value_name = "A..B")]
+        shards: Option<String>,
+        /// Threads rendering samples (default: every core).
+        #[arg(long, allow_negative_numbers = true)]
+        workers: Option<i64>,
+        /// Replace a dataset of another spec in OUT (its shards are removed).
+        #[arg(long)]
+        force: bool,
+    },
     /// Bake the bundled exemplar and write a small gallery.
     Demo {
         /// Output folder.
@@ -701,6 +720,90 @@ fn progress_reporter(label: &'static str) -> impl FnMut(f64) {
             }
         }
     }
+}
+
+/// A shard range "A..B" (B excluded) from the command line.
+fn shard_range(text: &str) -> Result<std::ops::Range<u64>> {
+    let parsed = text
+        .split_once("..")
+        .and_then(|(a, b)| Some((a.trim().parse::<u64>().ok()?, b.trim().parse::<u64>().ok()?)));
+    match parsed {
+        Some((a, b)) if a < b => Ok(a..b),
+        _ => Err(Error::param(
+            "shards",
+            text,
+            "a range A..B of shard numbers with A < B (B excluded), e.g. 0..4",
+        )),
+    }
+}
+
+fn dataset_command(
+    spec: &Path,
+    out: &Path,
+    shards: Option<&str>,
+    workers: Option<i64>,
+    force: bool,
+) -> Result<()> {
+    let threads = match workers {
+        None => surftile::stream::default_threads(),
+        Some(n) if (1..=1024).contains(&n) => n as usize,
+        Some(n) => return Err(Error::param("workers", n, "1 to 1024 threads")),
+    };
+    let range = shards.map(shard_range).transpose()?;
+    let dataset = surftile::dataset::Dataset::load(spec)?;
+    let range = range.unwrap_or(0..dataset.shards());
+    let prepared = dataset.prepare(out, range.clone(), force)?;
+    if !prepared.broken.is_empty() {
+        eprintln!(
+            "dataset: rewriting {} shard(s) that do not match the index: {:?}",
+            prepared.broken.len(),
+            prepared.broken
+        );
+    }
+    let total = dataset.samples_in(&prepared.todo);
+    eprintln!(
+        "dataset: {} shard(s) {}..{} into {}: {} complete, {} to write ({total} samples, {threads} threads)",
+        range.end - range.start,
+        range.start,
+        range.end,
+        out.display(),
+        prepared.complete.len(),
+        prepared.todo.len(),
+    );
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "dataset: [{bar:30}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    let tty = std::io::stderr().is_terminal();
+    let start = Instant::now();
+    let mut done = 0u64;
+    for &s in &prepared.todo {
+        let written = dataset.write_shard(s, out, threads, &mut |n| bar.set_position(done + n))?;
+        done += written.samples;
+        let rate = done as f64 / start.elapsed().as_secs_f64().max(1e-9);
+        bar.set_message(format!("shard {s} done"));
+        if !tty {
+            eprintln!(
+                "dataset: wrote {} ({} samples, {:.1} MB), {done}/{total} samples, {rate:.1} samples/s",
+                surftile::dataset::Dataset::shard_name(s),
+                written.samples,
+                written.bytes as f64 / 1e6
+            );
+        }
+    }
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    eprintln!(
+        "dataset: {} shard(s) written, {} kept, {total} samples in {seconds:.2} s ({:.1} samples/s)",
+        prepared.todo.len(),
+        prepared.complete.len(),
+        total as f64 / seconds.max(1e-9)
+    );
+    Ok(())
 }
 
 fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
@@ -1327,6 +1430,13 @@ fn run(command: Command) -> Result<()> {
             plot,
             raw_shape,
         } => lattice_command(&image, json, plot.as_deref(), &raw_options(&raw_shape)?),
+        Command::Dataset {
+            spec,
+            out,
+            shards,
+            workers,
+            force,
+        } => dataset_command(&spec, &out, shards.as_deref(), workers, force),
         Command::Demo { out_dir } => {
             let start = Instant::now();
             println!("surftile demo: writing into {}/", out_dir.display());

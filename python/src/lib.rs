@@ -9,6 +9,8 @@
 //!   arrays, file contents), `FileNotFoundError` / `PermissionError` / `OSError`
 //!   (files), `surftile.BankError` (a `ValueError`: a bank that fails validation).
 
+mod dataset;
+
 use std::path::PathBuf;
 
 use numpy::{
@@ -929,6 +931,7 @@ fn _surftile(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Source>()?;
     m.add_class::<Surface>()?;
     m.add_class::<Bank>()?;
+    m.add_class::<dataset::Dataset>()?;
     m.add_function(wrap_pyfunction!(open, m)?)?;
     m.add_function(wrap_pyfunction!(bake, m)?)?;
     m.add_function(wrap_pyfunction!(stats, m)?)?;

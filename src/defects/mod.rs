@@ -168,7 +168,8 @@ impl DefectKind {
         }
     }
 
-    fn name(&self) -> &'static str {
+    /// Its kind's name: scratch, dent or pits.
+    pub fn name(&self) -> &'static str {
         match self {
             DefectKind::Scratch { .. } => "scratch",
             DefectKind::Dent { .. } => "dent",
@@ -433,6 +434,8 @@ pub struct Placed {
     pub bbox: [f64; 4],
     /// Mask id.
     pub id: u8,
+    /// The configuration entry it comes from (0-based).
+    pub entry: usize,
     /// Depth in pixels, the scale of [`MASK_FRACTION`].
     pub depth_px: f64,
     /// Height units per pixel of depth.
@@ -693,6 +696,7 @@ impl Defects {
             shape,
             bbox: [c[0] - r, c[1] - r, c[0] + r, c[1] + r],
             id: d.mask_id(),
+            entry: e,
             depth_px,
             z_scale: self.z_per_um * self.spacing_um,
         })
@@ -753,6 +757,35 @@ impl Defects {
         for (k, id) in ids.iter_mut().enumerate() {
             let (col, row) = (k % region.width, k / region.width);
             *id = Defects::at(&placed, region.x_at(col), region.y_at(row)).1;
+        }
+        Ok(())
+    }
+
+    /// Adds the defects to `heights` (one channel, row-major over `region`) and writes
+    /// their mask ids to `ids`, in one pass on the calling thread: the heights
+    /// [`Defected`] gives over the same inner heights, and the ids of
+    /// [`Defects::fill_ids`].
+    pub fn apply(&self, region: &Region, heights: &mut [f32], ids: &mut [u8]) -> Result<()> {
+        region.validate()?;
+        let n = region.width * region.height;
+        if heights.len() != n || ids.len() != n {
+            return Err(Error::param(
+                "defect buffers",
+                format!("{} heights and {} ids", heights.len(), ids.len()),
+                format!(
+                    "{n} of each for a {}×{} region",
+                    region.width, region.height
+                ),
+            ));
+        }
+        let placed = self.placed_over(region);
+        for (k, (v, id)) in heights.iter_mut().zip(ids.iter_mut()).enumerate() {
+            let (col, row) = (k % region.width, k / region.width);
+            let (dz, i) = Defects::at(&placed, region.x_at(col), region.y_at(row));
+            if dz != 0.0 {
+                *v = (*v as f64 + dz) as f32;
+            }
+            *id = i;
         }
         Ok(())
     }

@@ -176,6 +176,21 @@ pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> R
     })
 }
 
+/// A raster as the bytes of a float32 `.npy` file ((H, W) or (H, W, C), C order): what
+/// [`write_heights`] writes to a `.npy` path, for containers such as a dataset's shards.
+pub fn npy_bytes(raster: &Raster) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(raster.data.len() * 4 + 128);
+    npy::write(&mut out, raster)?;
+    Ok(out)
+}
+
+/// An 8-bit PNG (grey, RGB or RGBA by `channels`) as bytes: what [`write_png8`] writes.
+pub fn png8_bytes(width: usize, height: usize, channels: usize, pixels: &[u8]) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    png::encode8(&mut out, width, height, channels, pixels)?;
+    Ok(out)
+}
+
 /// Writes a file through a temporary sibling that is renamed into place on success and
 /// removed on failure, so `path` is either complete or untouched.
 pub fn write_atomically(

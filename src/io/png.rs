@@ -176,6 +176,17 @@ pub fn write_png8(
             "a .png file (this is an 8-bit PNG image)",
         ));
     }
+    super::write_atomically(path, |w| encode8(w, width, height, channels, pixels))
+}
+
+/// Encodes an 8-bit PNG (grey, RGB or RGBA by `channels`) to `w`.
+pub(super) fn encode8(
+    w: &mut impl Write,
+    width: usize,
+    height: usize,
+    channels: usize,
+    pixels: &[u8],
+) -> Result<()> {
     let color = match channels {
         1 => ColorType::Grayscale,
         3 => ColorType::Rgb,
@@ -194,19 +205,17 @@ pub fn write_png8(
             format!("{width}×{height}×{channels} bytes"),
         ));
     }
-    super::write_atomically(path, |w| {
-        encode(
-            w,
-            width,
-            height,
-            color,
-            BitDepth::Eight,
-            None,
-            |y, bytes| {
-                bytes.extend_from_slice(&pixels[y * row_len..(y + 1) * row_len]);
-            },
-        )
-    })
+    encode(
+        w,
+        width,
+        height,
+        color,
+        BitDepth::Eight,
+        None,
+        |y, bytes| {
+            bytes.extend_from_slice(&pixels[y * row_len..(y + 1) * row_len]);
+        },
+    )
 }
 
 /// Encodes a PNG row by row: `row(y, bytes)` appends row y's bytes. The image data is

@@ -10,8 +10,12 @@ any region or point as numpy arrays::
 
 The same inputs and seed give the same bits as the ``surftile`` CLI and the Rust API, on
 any thread count and however a region is split. Long calls release the GIL.
+
+Training datasets (WebDataset shards of samples with defect masks, on this machine or a
+Ray cluster) are in :mod:`surftile.dataset`.
 """
 
+from . import dataset
 from ._surftile import (
     Bank,
     BankError,
@@ -30,6 +34,7 @@ __all__ = [
     "Surface",
     "__version__",
     "bake",
+    "dataset",
     "open",
     "stats",
 ]
