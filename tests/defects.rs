@@ -306,3 +306,78 @@ fn bad_configurations_are_refused_by_name() {
     .to_string();
     assert!(e.contains("invalid height unit = mm"), "{e}");
 }
+
+/// Fills visit, on each row, only the columns a defect's groove, rim or box may reach:
+/// every sample of dense curved and straight scratches, dents and pits, at steps below,
+/// at and above one pixel, equals the point-by-point sum over every defect
+/// ([`Defects::at`]), heights and mask ids alike.
+#[test]
+fn row_culling_equals_every_point() {
+    let c = config(
+        r#"
+[[defect]]
+kind = "scratch"
+cell_um = 70.0
+probability = 0.9
+length_um = [20.0, 120.0]
+width_um = [2.0, 9.0]
+depth_um = [1.0, 4.0]
+profile = "u"
+pile_up = [0.1, 0.4]
+bend = 1.5
+
+[[defect]]
+kind = "scratch"
+cell_um = 55.0
+probability = 0.8
+length_um = [30.0, 90.0]
+width_um = [2.0, 6.0]
+depth_um = [1.0, 4.0]
+profile = "v"
+
+[[defect]]
+kind = "dent"
+cell_um = 30.0
+probability = 0.7
+diameter_um = [6.0, 20.0]
+depth_um = [1.0, 3.0]
+rim = [0.1, 0.3]
+
+[[defect]]
+kind = "pits"
+cell_um = 40.0
+probability = 0.7
+count = [2, 6]
+diameter_um = [2.0, 5.0]
+depth_um = [0.5, 1.0]
+spread_um = 8.0
+"#,
+    );
+    let defects = Defects::new(&c, 1.0, "um", 9).unwrap();
+    let surface = Defected::new(Flat, defects.clone()).unwrap();
+    let (mut changed, mut marked) = (0, 0);
+    for step in [0.37, 1.0, 2.5] {
+        let region = Region::new(-7000.3, 12345.6, 220, 170).with_step(step);
+        let mut h = vec![0.0f32; region.len()];
+        surface.fill(&region, &mut h).unwrap();
+        let mut ids = vec![0u8; region.len()];
+        defects.fill_ids(&region, &mut ids).unwrap();
+        for (k, (&v, &id)) in h.iter().zip(&ids).enumerate() {
+            let (x, y) = (region.x_at(k % 220), region.y_at(k / 220));
+            let (dz, want) = Defects::at(&defects.placed_in(x, y, x, y), x, y);
+            let want_h = if dz != 0.0 {
+                (0.0f32 as f64 + dz) as f32
+            } else {
+                0.0
+            };
+            assert_eq!(v.to_bits(), want_h.to_bits(), "step {step}, sample {k}");
+            assert_eq!(id, want, "step {step}, sample {k}");
+            changed += (v != 0.0) as usize;
+            marked += (id != 0) as usize;
+        }
+    }
+    assert!(
+        changed > 10_000 && marked > 5_000,
+        "{changed} changed, {marked} marked"
+    );
+}

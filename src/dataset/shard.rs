@@ -310,7 +310,23 @@ impl Dataset {
         threads: usize,
         progress: &mut dyn FnMut(u64),
     ) -> Result<ShardWritten> {
-        if s >= self.shards() {
+        let written = self.write_shards(&[s], out, threads, &mut |p| progress(p.samples))?;
+        Ok(written[0])
+    }
+
+    /// Writes `shards` (in this order) into `out` as [`Dataset::write_shard`] does, as
+    /// one stream of samples: the workers render on across shard boundaries while a
+    /// completed shard is synced to disk and renamed on a thread of its own. `progress`
+    /// is called as samples are written and shards complete. Returns the shards
+    /// written, in order.
+    pub fn write_shards(
+        &self,
+        shards: &[u64],
+        out: &Path,
+        threads: usize,
+        progress: &mut dyn FnMut(RunProgress),
+    ) -> Result<Vec<ShardWritten>> {
+        if let Some(&s) = shards.iter().find(|&&s| s >= self.shards()) {
             return Err(Error::param(
                 "shard",
                 s,
@@ -325,70 +341,142 @@ impl Dataset {
             ));
         }
         self.check_index(out, false)?;
-        let threads = threads.max(1);
-        let path = out.join(Dataset::shard_name(s));
-        let samples = self.shard_samples(s);
-        let count = samples.end - samples.start;
-        crate::io::write_atomically(&path, |file| {
-            let mut tar = tar::Builder::new(file);
-            let batch = (4 * threads) as u64;
-            let mut k = samples.start;
-            while k < samples.end {
-                let end = (k + batch).min(samples.end);
-                for members in self.render_batch(k..end, threads)? {
-                    for (name, bytes) in members {
-                        append(&mut tar, &name, &bytes).map_err(|e| Error::io(&path, e))?;
-                    }
+        // Position p of the stream is sample k of shard parts[i].
+        let mut parts = Vec::with_capacity(shards.len());
+        let mut total = 0u64;
+        for &s in shards {
+            let r = self.shard_samples(s);
+            parts.push((s, r.clone(), total));
+            total += r.end - r.start;
+        }
+        let locate = |p: u64| parts.partition_point(|part| part.2 <= p) - 1;
+        let sample_at = |p: u64| {
+            let (_, r, first) = &parts[locate(p)];
+            r.start + (p - first)
+        };
+        let (done_tx, done_rx) = crossbeam::channel::unbounded::<Result<ShardWritten>>();
+        let (finish_tx, finish_rx) = crossbeam::channel::unbounded::<Finish>();
+        let mut open: Option<OpenShard> = None;
+        let mut finished = Vec::with_capacity(shards.len());
+        let result = std::thread::scope(|scope| {
+            // Syncs and renames completed shards while the next ones render.
+            scope.spawn(move || {
+                for f in finish_rx {
+                    let _ = done_tx.send(f.complete());
                 }
-                progress(end - samples.start);
-                k = end;
-            }
-            let file = tar.into_inner().map_err(|e| Error::io(&path, e))?;
-            file.flush().map_err(|e| Error::io(&path, e))
-        })?;
-        let bytes = std::fs::metadata(&path)
-            .map_err(|e| Error::io(&path, e))?
-            .len();
-        Ok(ShardWritten {
-            shard: s,
-            samples: count,
-            bytes,
-        })
+            });
+            let mut count = 0u64;
+            let streamed = self.render_in_order(total, &sample_at, threads, &mut |p, members| {
+                let i = locate(p);
+                let (s, ref r, first) = parts[i];
+                if p == first {
+                    open = Some(OpenShard::create(out, s)?);
+                }
+                let shard = open.as_mut().expect("a shard is open");
+                for (name, bytes) in members {
+                    shard.append(&name, &bytes)?;
+                }
+                count += 1;
+                if p + 1 == first + (r.end - r.start) {
+                    let shard = open.take().expect("a shard is open");
+                    let _ = finish_tx.send(shard.close(r.end - r.start)?);
+                }
+                while let Ok(done) = done_rx.try_recv() {
+                    finished.push(done?);
+                }
+                progress(RunProgress {
+                    samples: count,
+                    shards: finished.len() as u64,
+                });
+                Ok(())
+            });
+            drop(finish_tx);
+            streamed
+        });
+        // An error leaves the open shard's temporary file: remove it.
+        drop(open);
+        for done in done_rx {
+            finished.push(done?);
+        }
+        result?;
+        progress(RunProgress {
+            samples: total,
+            shards: finished.len() as u64,
+        });
+        finished.sort_by_key(|w| shards.iter().position(|&s| s == w.shard));
+        Ok(finished)
     }
 
-    /// Renders and encodes samples `range` on `threads` threads, in order.
-    fn render_batch(
+    /// Renders and encodes the samples `sample_at(0..count)` on `threads` threads and
+    /// hands each to `write(position, members)` in order, on the calling thread, while
+    /// the next ones render. Workers run at most a window of 2 × threads samples ahead
+    /// of the writer, which bounds the samples held. The first error stops the work and
+    /// is returned.
+    fn render_in_order(
         &self,
-        range: std::ops::Range<u64>,
+        count: u64,
+        sample_at: &(dyn Fn(u64) -> u64 + Sync),
         threads: usize,
-    ) -> Result<Vec<Vec<(String, Vec<u8>)>>> {
-        let make = |k: u64| self.sample(k).and_then(|s| self.encode(&s));
-        if threads == 1 || range.end - range.start == 1 {
-            return range.map(make).collect();
+        write: &mut dyn FnMut(u64, Vec<(String, Vec<u8>)>) -> Result<()>,
+    ) -> Result<()> {
+        use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+        let make = |p: u64| {
+            let sample = self.sample(sample_at(p))?;
+            self.encode(&sample)
+        };
+        if threads == 1 {
+            for p in 0..count {
+                write(p, make(p)?)?;
+            }
+            return Ok(());
         }
-        let next = std::sync::atomic::AtomicU64::new(range.start);
-        let mut done: Vec<(u64, Result<Vec<(String, Vec<u8>)>>)> = std::thread::scope(|scope| {
-            let workers: Vec<_> = (0..threads)
-                .map(|_| {
-                    scope.spawn(|| {
-                        let mut mine = Vec::new();
-                        loop {
-                            let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            if k >= range.end {
-                                return mine;
-                            }
-                            mine.push((k, make(k)));
+        let window = 2 * threads as u64;
+        let next = AtomicU64::new(0);
+        let written = AtomicU64::new(0);
+        let stop = AtomicBool::new(false);
+        let (tx, rx) = crossbeam::channel::unbounded();
+        std::thread::scope(|scope| {
+            for _ in 0..threads {
+                let tx = tx.clone();
+                let (next, written, stop, make) = (&next, &written, &stop, &make);
+                scope.spawn(move || {
+                    loop {
+                        let p = next.fetch_add(1, Ordering::Relaxed);
+                        if p >= count {
+                            return;
                         }
-                    })
-                })
-                .collect();
-            workers
-                .into_iter()
-                .flat_map(|w| w.join().expect("a sample worker panicked"))
-                .collect()
-        });
-        done.sort_by_key(|(k, _)| *k);
-        done.into_iter().map(|(_, r)| r).collect()
+                        while p >= written.load(Ordering::Acquire) + window {
+                            if stop.load(Ordering::Relaxed) {
+                                return;
+                            }
+                            std::thread::sleep(std::time::Duration::from_micros(200));
+                        }
+                        if stop.load(Ordering::Relaxed) || tx.send((p, make(p))).is_err() {
+                            return;
+                        }
+                    }
+                });
+            }
+            drop(tx);
+            let mut pending = std::collections::BTreeMap::new();
+            let mut want = 0;
+            let result = (|| {
+                for (p, members) in &rx {
+                    pending.insert(p, members);
+                    while let Some(members) = pending.remove(&want) {
+                        write(want, members?)?;
+                        want += 1;
+                        written.store(want, Ordering::Release);
+                    }
+                }
+                Ok(())
+            })();
+            if result.is_err() {
+                stop.store(true, Ordering::Relaxed);
+            }
+            drop(rx);
+            result
+        })
     }
 
     /// Refuses an output folder whose `dataset.json` was written for another spec
@@ -560,22 +648,7 @@ impl Dataset {
         progress: &mut dyn FnMut(RunProgress),
     ) -> Result<(Prepared, Vec<ShardWritten>)> {
         let prepared = self.prepare(out, range, force)?;
-        let mut written = Vec::with_capacity(prepared.todo.len());
-        let mut samples_before = 0;
-        for &s in &prepared.todo {
-            let done = self.write_shard(s, out, threads, &mut |n| {
-                progress(RunProgress {
-                    samples: samples_before + n,
-                    shards: written.len() as u64,
-                })
-            })?;
-            samples_before += done.samples;
-            written.push(done);
-            progress(RunProgress {
-                samples: samples_before,
-                shards: written.len() as u64,
-            });
-        }
+        let written = self.write_shards(&prepared.todo, out, threads, progress)?;
         Ok((prepared, written))
     }
 
@@ -603,6 +676,94 @@ pub struct RunProgress {
     pub samples: u64,
     /// Shards complete.
     pub shards: u64,
+}
+
+/// A shard being written: its tar stream into a temporary file beside its final name,
+/// removed if dropped before [`OpenShard::close`].
+struct OpenShard {
+    shard: u64,
+    tmp: PathBuf,
+    path: PathBuf,
+    tar: Option<tar::Builder<std::io::BufWriter<std::fs::File>>>,
+}
+
+impl OpenShard {
+    fn create(out: &Path, shard: u64) -> Result<OpenShard> {
+        let path = shard_path(out, shard);
+        let tmp = crate::io::temp_sibling(&path, &format!(".part-{}", std::process::id()));
+        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        Ok(OpenShard {
+            shard,
+            tmp,
+            path,
+            tar: Some(tar::Builder::new(std::io::BufWriter::with_capacity(
+                1 << 20,
+                file,
+            ))),
+        })
+    }
+
+    fn append(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+        let tar = self.tar.as_mut().expect("an open shard");
+        append(tar, name, bytes).map_err(|e| Error::io(&self.tmp, e))
+    }
+
+    /// Ends the archive and flushes it; the file still has to be synced and renamed.
+    fn close(mut self, samples: u64) -> Result<Finish> {
+        let tar = self.tar.take().expect("an open shard");
+        let file = tar
+            .into_inner()
+            .and_then(|w| w.into_inner().map_err(|e| e.into_error()))
+            .map_err(|e| Error::io(&self.tmp, e))?;
+        Ok(Finish {
+            file,
+            written: ShardWritten {
+                shard: self.shard,
+                samples,
+                bytes: 0,
+            },
+            tmp: std::mem::take(&mut self.tmp),
+            path: std::mem::take(&mut self.path),
+        })
+    }
+}
+
+impl Drop for OpenShard {
+    fn drop(&mut self) {
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// A complete shard in its temporary file: synced, then renamed into place.
+struct Finish {
+    file: std::fs::File,
+    written: ShardWritten,
+    tmp: PathBuf,
+    path: PathBuf,
+}
+
+impl Finish {
+    fn complete(self) -> Result<ShardWritten> {
+        let result = (|| {
+            self.file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+            let bytes = self
+                .file
+                .metadata()
+                .map_err(|e| Error::io(&self.tmp, e))?
+                .len();
+            std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
+            Ok(ShardWritten {
+                bytes,
+                ..self.written
+            })
+        })();
+        if result.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        result
+    }
 }
 
 /// Appends one member with fixed metadata (mode 644, owner 0, time 0), so that a

@@ -436,6 +436,8 @@ pub struct Placed {
     pub id: u8,
     /// The configuration entry it comes from (0-based).
     pub entry: usize,
+    /// A scratch's (cos θ, sin θ), computed once ((1, 0) for other shapes).
+    pub axis: [f64; 2],
     /// Depth in pixels, the scale of [`MASK_FRACTION`].
     pub depth_px: f64,
     /// Height units per pixel of depth.
@@ -470,6 +472,82 @@ impl Placed {
         self.displacement_px(x, y) * self.z_scale
     }
 
+    /// The x intervals (pixels, at most two) of row y outside which this defect changes
+    /// nothing: within its box, narrowed to the groove and ridges of a scratch (|d| < 2a
+    /// from its centre line, widened by a pixel for rounding) and to the rim's circle of
+    /// a dent. Used to visit only the samples a defect may change.
+    fn row_spans(&self, y: f64) -> [Option<(f64, f64)>; 2] {
+        let b = &self.bbox;
+        if y < b[1] || y > b[3] {
+            return [None, None];
+        }
+        let full = Some((b[0], b[2]));
+        let clip = |lo: f64, hi: f64| {
+            let (lo, hi) = (lo.max(b[0]), hi.min(b[2]));
+            (lo <= hi).then_some((lo, hi))
+        };
+        const MARGIN: f64 = 1.0;
+        match &self.shape {
+            Shape::Scratch {
+                c,
+                kappa,
+                half_width: a,
+                ..
+            } => {
+                let [ct, st] = self.axis;
+                let n = [-st, ct];
+                let reach = 2.0 * a + MARGIN;
+                if kappa.abs() < 1e-12 {
+                    // d = (x − cx)·n0 + (y − cy)·n1, linear in x.
+                    let dy = (y - c[1]) * n[1];
+                    if n[0].abs() < 1e-9 {
+                        return if dy.abs() < reach {
+                            [full, None]
+                        } else {
+                            [None, None]
+                        };
+                    }
+                    let (p, q) = ((-reach - dy) / n[0] + c[0], (reach - dy) / n[0] + c[0]);
+                    return [clip(p.min(q), p.max(q)), None];
+                }
+                let r = 1.0 / kappa;
+                if r.abs() > 1e5 {
+                    // A nearly straight arc: the circle's arithmetic would lose its
+                    // precision; the box is exact enough.
+                    return [full, None];
+                }
+                // The annulus |r| − reach ≤ |p − centre| ≤ |r| + reach.
+                let centre = [c[0] + r * n[0], c[1] + r * n[1]];
+                let dy = y - centre[1];
+                let outer = r.abs() + reach;
+                if dy.abs() > outer {
+                    return [None, None];
+                }
+                let wo = (outer * outer - dy * dy).sqrt();
+                let inner = r.abs() - reach;
+                if inner > 0.0 && dy.abs() < inner {
+                    let wi = (inner * inner - dy * dy).sqrt();
+                    [
+                        clip(centre[0] - wo, centre[0] - wi),
+                        clip(centre[0] + wi, centre[0] + wo),
+                    ]
+                } else {
+                    [clip(centre[0] - wo, centre[0] + wo), None]
+                }
+            }
+            Shape::Dent { c, r0, .. } => {
+                let reach = RIM_REACH * r0 + MARGIN;
+                let dy = y - c[1];
+                if dy.abs() > reach {
+                    return [None, None];
+                }
+                let w = (reach * reach - dy * dy).sqrt();
+                [clip(c[0] - w, c[0] + w), None]
+            }
+            Shape::Pits { .. } => [full, None],
+        }
+    }
+
     /// The height change at (x, y), in pixels.
     fn displacement_px(&self, x: f64, y: f64) -> f64 {
         let b = &self.bbox;
@@ -487,20 +565,31 @@ impl Placed {
                 pile_up,
                 profile,
             } => {
-                let (t, n) = ([theta.cos(), theta.sin()], [-theta.sin(), theta.cos()]);
+                let [ct, st] = self.axis;
+                debug_assert_eq!([ct, st], [theta.cos(), theta.sin()]);
+                let (t, n) = ([ct, st], [-st, ct]);
                 let (dx, dy) = (x - c[0], y - c[1]);
-                // Along-path coordinate s and signed distance d from the centre line.
-                let (s, d) = if kappa.abs() < 1e-12 {
-                    (dx * t[0] + dy * t[1], dx * n[0] + dy * n[1])
+                // Signed distance d from the centre line first: most of the box is
+                // beyond the groove and its ridges (q ≥ 2), where nothing changes and the
+                // along-path coordinate s (an atan2 on an arc) is not needed.
+                let (s, q) = if kappa.abs() < 1e-12 {
+                    let q = (dx * n[0] + dy * n[1]).abs() / a;
+                    if q >= 2.0 {
+                        return 0.0;
+                    }
+                    (dx * t[0] + dy * t[1], q)
                 } else {
                     let r = 1.0 / kappa; // signed radius: the centre is at c + r·n
                     let (vx, vy) = (dx - r * n[0], dy - r * n[1]);
+                    let d = (r.abs() - (vx * vx + vy * vy).sqrt()) * r.signum();
+                    let q = d.abs() / a;
+                    if q >= 2.0 {
+                        return 0.0;
+                    }
                     // Angle from the vector centre → c (−r·n) to centre → point.
                     let (ux, uy) = (-r * n[0], -r * n[1]);
                     let ang = (ux * vy - uy * vx).atan2(ux * vx + uy * vy);
-                    let s = ang * r;
-                    let d = (r.abs() - (vx * vx + vy * vy).sqrt()) * r.signum();
-                    (s, d)
+                    (ang * r, q)
                 };
                 let half = length / 2.0;
                 if s.abs() > half {
@@ -509,18 +598,15 @@ impl Placed {
                 // Depth ramps in over one width at each end (smoothstep).
                 let e = ((half - s.abs()) / (2.0 * a)).clamp(0.0, 1.0);
                 let e = e * e * (3.0 - 2.0 * e);
-                let q = d.abs() / a;
                 let z = if q < 1.0 {
                     -depth
                         * match profile {
                             Profile::V => 1.0 - q,
                             Profile::U => 1.0 - q * q,
                         }
-                } else if q < 2.0 {
+                } else {
                     let w = (std::f64::consts::PI * (q - 1.0)).sin();
                     pile_up * w * w
-                } else {
-                    0.0
                 };
                 z * e
             }
@@ -692,11 +778,16 @@ impl Defects {
             }
         };
         let r = reach + 1.0;
+        let axis = match &shape {
+            Shape::Scratch { theta, .. } => [theta.cos(), theta.sin()],
+            _ => [1.0, 0.0],
+        };
         Some(Placed {
             shape,
             bbox: [c[0] - r, c[1] - r, c[0] + r, c[1] + r],
             id: d.mask_id(),
             entry: e,
+            axis,
             depth_px,
             z_scale: self.z_per_um * self.spacing_um,
         })
@@ -754,9 +845,10 @@ impl Defects {
             ));
         }
         let placed = self.placed_over(region);
-        for (k, id) in ids.iter_mut().enumerate() {
-            let (col, row) = (k % region.width, k / region.width);
-            *id = Defects::at(&placed, region.x_at(col), region.y_at(row)).1;
+        let mut row = RowChanges::new(region.width);
+        for (r, out) in ids.chunks_exact_mut(region.width).enumerate() {
+            row.compute(&placed, region, r);
+            out.copy_from_slice(&row.ids);
         }
         Ok(())
     }
@@ -779,13 +871,14 @@ impl Defects {
             ));
         }
         let placed = self.placed_over(region);
-        for (k, (v, id)) in heights.iter_mut().zip(ids.iter_mut()).enumerate() {
-            let (col, row) = (k % region.width, k / region.width);
-            let (dz, i) = Defects::at(&placed, region.x_at(col), region.y_at(row));
-            if dz != 0.0 {
-                *v = (*v as f64 + dz) as f32;
-            }
-            *id = i;
+        let mut row = RowChanges::new(region.width);
+        let rows = heights
+            .chunks_exact_mut(region.width)
+            .zip(ids.chunks_exact_mut(region.width));
+        for (r, (hs, is)) in rows.enumerate() {
+            row.compute(&placed, region, r);
+            row.add_to(hs);
+            is.copy_from_slice(&row.ids);
         }
         Ok(())
     }
@@ -849,13 +942,80 @@ impl<S: Surface> Defected<S> {
 
     /// Adds the defects of `placed` to rows `rows` of `region` in `out`.
     fn add_rows(placed: &[Placed], region: &Region, rows: Range<usize>, out: &mut [f32]) {
+        let mut changes = RowChanges::new(region.width);
         for (r, row) in rows.zip(out.chunks_mut(region.width)) {
-            let y = region.y_at(r);
-            for (col, v) in row.iter_mut().enumerate() {
-                let (dz, _) = Defects::at(placed, region.x_at(col), y);
-                if dz != 0.0 {
-                    *v = (*v as f64 + dz) as f32;
+            changes.compute(placed, region, r);
+            changes.add_to(row);
+        }
+    }
+}
+
+/// The defects' changes along one row of a region: per column, the height change (the
+/// sum [`Defects::at`] forms, in the same order) and the mask id. Each defect visits
+/// only the columns of its box (nothing changes outside it), so a row costs its
+/// defects' widths, not their number times its width.
+struct RowChanges {
+    dz: Vec<f64>,
+    strongest: Vec<f64>,
+    ids: Vec<u8>,
+}
+
+impl RowChanges {
+    fn new(width: usize) -> RowChanges {
+        RowChanges {
+            dz: vec![0.0; width],
+            strongest: vec![0.0; width],
+            ids: vec![0; width],
+        }
+    }
+
+    /// The changes of `placed` along row `row` of `region`.
+    fn compute(&mut self, placed: &[Placed], region: &Region, row: usize) {
+        self.dz.fill(0.0);
+        self.strongest.fill(0.0);
+        self.ids.fill(0);
+        let y = region.y_at(row);
+        let w = region.width;
+        let x0 = region.x_at(0);
+        // Columns whose x may lie in [lo, hi], one more each side for rounding: a column
+        // outside adds nothing, as in `at`.
+        let columns = |(lo, hi): (f64, f64)| {
+            let (a, z) = ((lo - x0) / region.step, (hi - x0) / region.step);
+            (z >= -1.0 && a <= w as f64).then(|| {
+                let first = (a.floor() - 1.0).max(0.0) as usize;
+                let last = ((z.ceil() + 1.0).min(w as f64 - 1.0)) as usize;
+                (first, last)
+            })
+        };
+        for p in placed {
+            let [one, two] = p.row_spans(y).map(|s| s.and_then(columns));
+            // Two spans (a scratch's arc crossing the row twice) widened into each other
+            // are visited once.
+            let spans = match (one, two) {
+                (Some(a), Some(b)) if b.0 <= a.1 + 1 => [Some((a.0, a.1.max(b.1))), None],
+                other => [other.0, other.1],
+            };
+            for (first, last) in spans.into_iter().flatten() {
+                for col in first..=last {
+                    let v = p.displacement_px(region.x_at(col), y);
+                    if v != 0.0 {
+                        self.dz[col] += v * p.z_scale;
+                        let rel = v.abs() / p.depth_px;
+                        if rel > MASK_FRACTION && rel > self.strongest[col] {
+                            self.strongest[col] = rel;
+                            self.ids[col] = p.id;
+                        }
+                    }
                 }
+            }
+        }
+    }
+
+    /// Adds the changes to a row of heights.
+    fn add_to(&self, row: &mut [f32]) {
+        for (v, &dz) in row.iter_mut().zip(&self.dz) {
+            if dz != 0.0 {
+                *v = (*v as f64 + dz) as f32;
             }
         }
     }

@@ -184,10 +184,18 @@ pub fn npy_bytes(raster: &Raster) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// An 8-bit PNG (grey, RGB or RGBA by `channels`) as bytes: what [`write_png8`] writes.
+/// An 8-bit PNG (grey, RGB or RGBA by `channels`) as bytes, compressed for speed (the
+/// pixels [`write_png8`] writes, in a somewhat larger file): a dataset's masks.
 pub fn png8_bytes(width: usize, height: usize, channels: usize, pixels: &[u8]) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    png::encode8(&mut out, width, height, channels, pixels)?;
+    png::encode8(
+        &mut out,
+        width,
+        height,
+        channels,
+        pixels,
+        ::png::Compression::Fast,
+    )?;
     Ok(out)
 }
 
@@ -286,7 +294,7 @@ impl Drop for Staged {
 /// A temporary name beside `path`: `.NAME` then `suffix` (e.g. `.part-PID`), or, where
 /// that would pass the 255-byte limit of a file name, NAME's start and a checksum of the
 /// whole name (so a legal 254-byte name still gets a legal temporary one).
-fn temp_sibling(path: &Path, suffix: &str) -> PathBuf {
+pub(crate) fn temp_sibling(path: &Path, suffix: &str) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

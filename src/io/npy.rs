@@ -218,14 +218,26 @@ pub(super) fn write(w: &mut impl Write, raster: &Raster) -> Result<()> {
             raster.channels as u64,
         ]
     };
-    let mut writer = npyz::WriteOptions::<f32>::new()
-        .default_dtype()
+    // The header by npyz, the samples as one block of little-endian bytes (a call per
+    // sample through npyz's typed writer took 1.5 ms per 512² sample).
+    let dtype = DType::new_scalar(
+        "<f4"
+            .parse()
+            .map_err(|e| Error::decode("NPY output", format!("{e}")))?,
+    );
+    npyz::WriteOptions::new_header_only()
+        .dtype(dtype)
         .shape(&shape)
-        .writer(w)
-        .begin_nd()
+        .writer(&mut *w)
+        .write_header_only()
         .map_err(err)?;
-    writer.extend(raster.data.iter().copied()).map_err(err)?;
-    writer.finish().map_err(err)
+    let mut block = Vec::with_capacity(raster.data.len().min(1 << 16) * 4);
+    for chunk in raster.data.chunks(1 << 16) {
+        block.clear();
+        block.extend(chunk.iter().flat_map(|v| v.to_le_bytes()));
+        w.write_all(&block).map_err(err)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 
 use std::io::{Cursor, Write};
 
-use png::{BitDepth, ColorType, Transformations};
+use png::{BitDepth, ColorType, Compression, Transformations};
 
 use super::{HeightMeta, ImageFile, drop_alpha};
 use crate::error::{Error, Result};
@@ -132,6 +132,7 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f6
         color,
         BitDepth::Sixteen,
         Some(&meta),
+        Compression::Balanced,
         |y, bytes| {
             for &v in &raster.data[y * row_len..(y + 1) * row_len] {
                 let level = if span > 0.0 {
@@ -176,16 +177,19 @@ pub fn write_png8(
             "a .png file (this is an 8-bit PNG image)",
         ));
     }
-    super::write_atomically(path, |w| encode8(w, width, height, channels, pixels))
+    super::write_atomically(path, |w| {
+        encode8(w, width, height, channels, pixels, Compression::Balanced)
+    })
 }
 
-/// Encodes an 8-bit PNG (grey, RGB or RGBA by `channels`) to `w`.
+/// Encodes an 8-bit PNG (grey, RGB or RGBA by `channels`) to `w` at `compression`.
 pub(super) fn encode8(
     w: &mut impl Write,
     width: usize,
     height: usize,
     channels: usize,
     pixels: &[u8],
+    compression: Compression,
 ) -> Result<()> {
     let color = match channels {
         1 => ColorType::Grayscale,
@@ -212,6 +216,7 @@ pub(super) fn encode8(
         color,
         BitDepth::Eight,
         None,
+        compression,
         |y, bytes| {
             bytes.extend_from_slice(&pixels[y * row_len..(y + 1) * row_len]);
         },
@@ -227,6 +232,7 @@ fn encode(
     color: ColorType,
     depth: BitDepth,
     meta: Option<&HeightMeta>,
+    compression: Compression,
     mut row: impl FnMut(usize, &mut Vec<u8>),
 ) -> Result<()> {
     let err = |e: png::EncodingError| Error::decode("PNG output", e.to_string());
@@ -234,6 +240,7 @@ fn encode(
     let mut enc = png::Encoder::new(w, width as u32, height as u32);
     enc.set_color(color);
     enc.set_depth(depth);
+    enc.set_compression(compression);
     if let Some(meta) = meta {
         let text = serde_json::to_string(meta)
             .map_err(|e| Error::decode("PNG metadata", e.to_string()))?;
