@@ -1237,3 +1237,78 @@ fn defects_render_with_their_mask() {
     assert_clean_failure(dir.path(), &r, "probability = 2", "b.npy");
     assert!(!dir.path().join("b.png").exists());
 }
+
+/// `surftile dataset`: writes its shards and index, a rerun keeps them, a changed spec
+/// is refused unless --force, and bad input is one line with a non-zero exit and
+/// nothing written.
+#[test]
+fn dataset_writes_resumes_and_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = |seed: u32, weight: f64| {
+        format!(
+            "[dataset]\nsamples = 6\nsamples_per_shard = 2\nseed = {seed}\nsize = [40, 30]\n\n\
+             [[source]]\npath = \"parallel-d4-ae05\"\nweight = {weight}\n\n\
+             [[defect]]\nkind = \"dent\"\nprobability = 1.0\ncell_um = 300.0\n\
+             cell_probability = 1.0\ndiameter_um = [60.0, 120.0]\ndepth_um = [2.0, 5.0]\n"
+        )
+    };
+    std::fs::write(dir.path().join("spec.toml"), spec(1, 1.0)).unwrap();
+    let r = surftile(dir.path(), &["dataset", "spec.toml", "--out", "ds"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("3 to write"), "{}", r.stderr);
+    let shards: Vec<Vec<u8>> = (0..3)
+        .map(|s| std::fs::read(dir.path().join(format!("ds/shard-{s:06}.tar"))).unwrap())
+        .collect();
+    assert!(dir.path().join("ds/dataset.json").exists());
+    // One thread, shard 1 rewritten alone: the same bytes.
+    std::fs::remove_file(dir.path().join("ds/shard-000001.tar")).unwrap();
+    let r = surftile(
+        dir.path(),
+        &["dataset", "spec.toml", "--out", "ds", "--workers", "1"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("2 complete, 1 to write"), "{}", r.stderr);
+    assert_eq!(
+        std::fs::read(dir.path().join("ds/shard-000001.tar")).unwrap(),
+        shards[1]
+    );
+    // A changed spec is refused, then replaced with --force.
+    std::fs::write(dir.path().join("spec.toml"), spec(2, 1.0)).unwrap();
+    let r = surftile(dir.path(), &["dataset", "spec.toml", "--out", "ds"]);
+    assert_ne!(r.code, 0);
+    assert!(r.stderr.contains("--force"), "{}", r.stderr);
+    assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    let r = surftile(dir.path(), &["dataset", "spec.toml", "--out", "ds", "--force"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_ne!(
+        std::fs::read(dir.path().join("ds/shard-000000.tar")).unwrap(),
+        shards[0]
+    );
+    // Bad input: one line, a non-zero exit, nothing written.
+    std::fs::write(dir.path().join("bad.toml"), spec(1, 0.0)).unwrap();
+    std::fs::write(dir.path().join("file"), b"x").unwrap();
+    for (args, expected) in [
+        (vec!["dataset", "bad.toml", "--out", "new"], "weight = 0"),
+        (vec!["dataset", "spec.toml", "--out", "file"], "this is a file"),
+        (
+            vec!["dataset", "spec.toml", "--out", "new", "--shards", "2..9"],
+            "within 0..3",
+        ),
+        (
+            vec!["dataset", "spec.toml", "--out", "new", "--shards", "3..1"],
+            "A < B",
+        ),
+        (
+            vec!["dataset", "spec.toml", "--out", "new", "--workers", "0"],
+            "workers = 0",
+        ),
+        (vec!["dataset", "missing.toml", "--out", "new"], "missing.toml"),
+    ] {
+        let r = surftile(dir.path(), &args);
+        assert_ne!(r.code, 0, "{args:?}");
+        assert!(r.stderr.contains(expected), "{args:?}: {}", r.stderr);
+        assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    }
+    assert!(!dir.path().join("new").exists());
+    assert_eq!(std::fs::read(dir.path().join("file")).unwrap(), b"x");
+}

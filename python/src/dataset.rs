@@ -139,6 +139,57 @@ impl Dataset {
         Ok(d)
     }
 
+    /// Writes `shards` (in order) into the folder `out` as one stream: the samples
+    /// render on across shard boundaries while completed shards are synced and renamed
+    /// (what `surftile dataset` does). `progress`, if given, is called with
+    /// (samples written, shards complete) as they change. Returns a list of
+    /// {"shard", "samples", "bytes"}.
+    #[pyo3(signature = (shards, out, threads=None, progress=None))]
+    fn write_shards<'py>(
+        &self,
+        py: Python<'py>,
+        shards: Vec<i64>,
+        out: PathBuf,
+        threads: Option<i64>,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let shards = shards.into_iter().map(shard).collect::<PyResult<Vec<_>>>()?;
+        let threads = self::threads(threads)?;
+        let mut last_shards = 0u64;
+        let mut failure: Option<PyErr> = None;
+        let written = py
+            .detach(|| {
+                self.inner.write_shards(&shards, &out, threads, &mut |p| {
+                    let Some(callback) = &progress else {
+                        return;
+                    };
+                    if failure.is_some() || p.shards == last_shards {
+                        return;
+                    }
+                    last_shards = p.shards;
+                    Python::attach(|py| {
+                        if let Err(e) = callback.call1(py, (p.samples, p.shards)) {
+                            failure = Some(e);
+                        }
+                    });
+                })
+            })
+            .py()?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        written
+            .into_iter()
+            .map(|w| {
+                let d = PyDict::new(py);
+                d.set_item("shard", w.shard)?;
+                d.set_item("samples", w.samples)?;
+                d.set_item("bytes", w.bytes)?;
+                Ok(d)
+            })
+            .collect()
+    }
+
     /// Sample `k` in memory: {"height": float32 array, "mask": uint8 array or None,
     /// "shaded": uint8 array or None, "meta": dict (its JSON member)}.
     fn sample<'py>(&self, py: Python<'py>, k: i64) -> PyResult<Bound<'py, PyDict>> {

@@ -61,8 +61,19 @@ def _report(progress: "bool | Callable[[dict], Any]", event: dict) -> None:
         )
 
 
+_OPENED: dict = {}
+
+
 def _ray_write(spec: str, index: int, out: str, threads: int) -> dict:
-    return Dataset(spec).write_shard(index, out, threads)
+    # A worker runs many tasks of one spec: it opens the spec (sources, layers, hash)
+    # once, and again only when the file changes.
+    stat = os.stat(spec)
+    key = (spec, stat.st_mtime_ns, stat.st_size)
+    dataset = _OPENED.get(key)
+    if dataset is None:
+        _OPENED.clear()
+        dataset = _OPENED[key] = Dataset(spec)
+    return dataset.write_shard(index, out, threads)
 
 
 def generate(
@@ -125,8 +136,21 @@ def generate(
         })
 
     if engine == "local":
+        # One stream over the shards, as the CLI writes them; shards are reported as
+        # they complete (the callback runs between samples, with the GIL).
+        sizes = {}
         for s in todo:
-            finished(dataset.write_shard(s, out, workers))
+            first, end = dataset.shard_samples(s)
+            sizes[s] = end - first
+
+        def report(samples_done: int, shards_done: int) -> None:
+            while len(written) < shards_done:
+                s = todo[len(written)]
+                finished({"shard": s, "samples": sizes[s]})
+
+        if todo:
+            dataset.write_shards(todo, out, workers, report)
+            report(0, len(todo))
     else:
         failed = _run_ray(spec, out, todo, address, workers, retries, finished)
         dataset.remove_temporaries(out, span.start, span.stop)
