@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::bank::Bank;
+use crate::defects::{DefectConfig, Defected, Defects};
 use crate::error::{Error, Result};
 use crate::imperfect::{Imperfect, ImperfectConfig};
 use crate::kinds::{Kind, LoadOptions, Loaded};
@@ -44,6 +45,7 @@ pub struct Open {
     spacing_um: f64,
     imperfection: Option<PathBuf>,
     age: Option<f64>,
+    defects: Option<PathBuf>,
 }
 
 impl Open {
@@ -54,6 +56,7 @@ impl Open {
             spacing_um: DEFAULT_SPACING_UM,
             imperfection: None,
             age: None,
+            defects: None,
         }
     }
 
@@ -79,8 +82,17 @@ impl Open {
         self
     }
 
-    /// Loads the layer's configuration (checking its age) and the source (its kind
-    /// checks what it uses, such as a milling spacing).
+    /// Defects in the surface, under an imperfection layer if there is one: a `.toml`
+    /// of `[[defect]]` entries or a preset name (scratches, dents, pits). Their µm are
+    /// converted with the source's spacing, or the [`Open::spacing_um`] where it has
+    /// none (seed 001 models).
+    pub fn defects(mut self, config: impl AsRef<Path>) -> Open {
+        self.defects = Some(config.as_ref().to_path_buf());
+        self
+    }
+
+    /// Loads the layer's configuration (checking its age), the defects' and the source
+    /// (its kind checks what it uses, such as a milling spacing).
     pub fn open(self) -> Result<Source> {
         let layer = match (&self.imperfection, self.age) {
             (None, Some(age)) => {
@@ -110,10 +122,21 @@ impl Open {
             .bank()
             .and_then(|_| std::fs::metadata(&self.spec).ok())
             .map(|m| m.len());
+        let defects = match &self.defects {
+            None => None,
+            Some(path) => {
+                let config = DefectConfig::load(path)?;
+                let spacing_um = loaded.spacing_um().unwrap_or(self.spacing_um);
+                // Checks the spacing and that the heights' unit takes µm.
+                Defects::new(&config, spacing_um, &loaded.height_unit(), 0)?;
+                Some((config, spacing_um))
+            }
+        };
         Ok(Source {
             loaded,
             layer,
             file_bytes,
+            defects,
         })
     }
 }
@@ -131,6 +154,8 @@ pub struct Source {
     layer: Option<Layer>,
     /// The bank file's size, for [`Source::info_json`].
     file_bytes: Option<u64>,
+    /// The defects' configuration and the spacing (µm per pixel) they are placed at.
+    defects: Option<(DefectConfig, f64)>,
 }
 
 impl Source {
@@ -141,13 +166,14 @@ impl Source {
             loaded: crate::kinds::bank_source(bank)?,
             layer: None,
             file_bytes: None,
+            defects: None,
         })
     }
 
-    /// The surface placed with `seed`, with the imperfection layer over it when one was
-    /// asked for (its noise seeded with `seed` too).
+    /// The surface placed with `seed`, with the defects in it and the imperfection layer
+    /// over it when they were asked for (their cells and noise seeded with `seed` too).
     pub fn surface(&self, seed: u32) -> Result<Box<dyn Surface>> {
-        let surface = self.loaded.surface(seed)?;
+        let surface = self.with_defects(self.loaded.surface(seed)?, seed)?;
         Ok(match &self.layer {
             None => surface,
             Some(layer) => Box::new(Imperfect::new(
@@ -156,6 +182,22 @@ impl Source {
                 layer.base.as_deref(),
                 seed,
             )?),
+        })
+    }
+
+    /// The defects placed with `seed`, when they were asked for.
+    pub fn defects(&self, seed: u32) -> Option<Result<Defects>> {
+        self.defects.as_ref().map(|(config, spacing_um)| {
+            Defects::new(config, *spacing_um, &self.height_unit(), seed)
+        })
+    }
+
+    /// `inner` (a surface of this source, perhaps filled on the GPU) with the defects
+    /// placed with `seed` in it, when they were asked for.
+    pub fn with_defects(&self, inner: Box<dyn Surface>, seed: u32) -> Result<Box<dyn Surface>> {
+        Ok(match self.defects(seed) {
+            None => inner,
+            Some(d) => Box::new(Defected::new(inner, d?)?),
         })
     }
 
@@ -195,7 +237,8 @@ impl Source {
 
     /// What `surftile info --json` prints: for a bank, [`Bank::info_json`] with the
     /// kind; for a configuration or preset, its kind, spacing and height unit. With a
-    /// layer, its pattern and age under `"imperfection"`.
+    /// layer, its pattern and age under `"imperfection"`; with defects, their kinds and
+    /// spacing under `"defects"`.
     pub fn info_json(&self) -> serde_json::Value {
         let mut info = match self.bank() {
             Some(bank) => bank.info_json(self.file_bytes),
@@ -209,6 +252,12 @@ impl Source {
             info["imperfection"] = serde_json::json!({
                 "pattern": config.pattern,
                 "age": config.age,
+            });
+        }
+        if let Some((config, spacing_um)) = &self.defects {
+            info["defects"] = serde_json::json!({
+                "kinds": config.defect.iter().map(|d| d.name()).collect::<Vec<_>>(),
+                "spacing_um": spacing_um,
             });
         }
         info

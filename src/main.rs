@@ -1107,6 +1107,9 @@ fn run(command: Command) -> Result<()> {
             if let Some(a) = age {
                 open = open.age(a);
             }
+            if let Some(path) = &defects {
+                open = open.defects(path);
+            }
             let spec = open.open()?;
             let shading = shading.options(spec.material())?;
             // On the GPU when asked and possible (its surface carries the CPU twin for
@@ -1130,23 +1133,8 @@ fn run(command: Command) -> Result<()> {
                 None => spec.loaded().surface(seed)?,
             };
             // Defects go into the surface, under an imperfection layer.
-            let defects = match &defects {
-                None => None,
-                Some(path) => {
-                    let config = surftile::defects::DefectConfig::load(path)?;
-                    let spacing_um = spec.spacing_um().unwrap_or(spacing);
-                    Some(surftile::defects::Defects::new(
-                        &config,
-                        spacing_um,
-                        &spec.height_unit(),
-                        seed,
-                    )?)
-                }
-            };
-            let surface: Box<dyn Surface> = match &defects {
-                None => surface,
-                Some(d) => Box::new(surftile::defects::Defected::new(surface, d.clone())?),
-            };
+            let defects = spec.defects(seed).transpose()?;
+            let surface = spec.with_defects(surface, seed)?;
             let defect_ids = |r: &surftile::Region, ids: &mut [u8]| match &defects {
                 Some(d) => d.fill_ids(r, ids),
                 None => Ok(()),

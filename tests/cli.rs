@@ -1278,7 +1278,10 @@ fn dataset_writes_resumes_and_refuses() {
     assert_ne!(r.code, 0);
     assert!(r.stderr.contains("--force"), "{}", r.stderr);
     assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
-    let r = surftile(dir.path(), &["dataset", "spec.toml", "--out", "ds", "--force"]);
+    let r = surftile(
+        dir.path(),
+        &["dataset", "spec.toml", "--out", "ds", "--force"],
+    );
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert_ne!(
         std::fs::read(dir.path().join("ds/shard-000000.tar")).unwrap(),
@@ -1289,7 +1292,10 @@ fn dataset_writes_resumes_and_refuses() {
     std::fs::write(dir.path().join("file"), b"x").unwrap();
     for (args, expected) in [
         (vec!["dataset", "bad.toml", "--out", "new"], "weight = 0"),
-        (vec!["dataset", "spec.toml", "--out", "file"], "this is a file"),
+        (
+            vec!["dataset", "spec.toml", "--out", "file"],
+            "this is a file",
+        ),
         (
             vec!["dataset", "spec.toml", "--out", "new", "--shards", "2..9"],
             "within 0..3",
@@ -1302,7 +1308,10 @@ fn dataset_writes_resumes_and_refuses() {
             vec!["dataset", "spec.toml", "--out", "new", "--workers", "0"],
             "workers = 0",
         ),
-        (vec!["dataset", "missing.toml", "--out", "new"], "missing.toml"),
+        (
+            vec!["dataset", "missing.toml", "--out", "new"],
+            "missing.toml",
+        ),
     ] {
         let r = surftile(dir.path(), &args);
         assert_ne!(r.code, 0, "{args:?}");

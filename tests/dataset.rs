@@ -213,7 +213,7 @@ fn samples_equal_the_surfaces_they_record() {
         }
     }
     // The spec's probabilities give every case among ten samples.
-    assert!(layered >= 2 && layered <= 8, "{layered} of 10 with a layer");
+    assert!((2..=8).contains(&layered), "{layered} of 10 with a layer");
     assert!(defected >= 5, "{defected} of 10 with defects");
     assert!(marked >= 3, "{marked} of 10 with defect pixels in the mask");
 }

@@ -153,7 +153,10 @@ impl Dataset {
         threads: Option<i64>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let shards = shards.into_iter().map(shard).collect::<PyResult<Vec<_>>>()?;
+        let shards = shards
+            .into_iter()
+            .map(shard)
+            .collect::<PyResult<Vec<_>>>()?;
         let threads = self::threads(threads)?;
         let mut last_shards = 0u64;
         let mut failure: Option<PyErr> = None;

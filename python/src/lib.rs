@@ -209,9 +209,11 @@ fn place(py: Python<'_>, source: &surftile::Source, seed: i64) -> PyResult<Surfa
     py.detach(|| make_surface(source, seed)).py()
 }
 
-/// The surface of `source` placed with `seed`, its layer kept typed for the mask.
+/// The surface of `source` placed with `seed`: its defects in it, its layer kept typed
+/// for the mask.
 fn make_surface(source: &surftile::Source, seed: u32) -> surftile::Result<Surface> {
-    let plain = source.loaded().surface(seed)?;
+    let defects = source.defects(seed).transpose()?;
+    let plain = source.with_defects(source.loaded().surface(seed)?, seed)?;
     let inner = if source.imperfection().is_some() {
         let layer = source
             .imperfect_over(plain, seed)
@@ -223,6 +225,7 @@ fn make_surface(source: &surftile::Source, seed: u32) -> surftile::Result<Surfac
     Ok(Surface {
         channels: inner.get().channels(),
         inner,
+        defects,
         spacing_um: source.spacing_um(),
         height_unit: source.height_unit(),
         seed,
@@ -293,6 +296,8 @@ impl Inner {
 #[pyclass(module = "surftile", frozen)]
 struct Surface {
     inner: Inner,
+    /// The defects in it, for their mask ids.
+    defects: Option<surftile::defects::Defects>,
     channels: usize,
     spacing_um: Option<f64>,
     height_unit: String,
@@ -449,10 +454,12 @@ impl Surface {
         }
         Ok(arr.into_any())
     }
-    /// As `fill`, with the imperfection layer's id of every sample as a uint8 array of
-    /// shape (height, width): 0 intact; dust and patina 1; peeling 1, 2, … for each
-    /// layer lost. A source without a layer gives its heights and an all-zero mask.
-    /// At most 2^25 samples per call with a layer.
+    /// As `fill`, with the mask id of every sample as a uint8 array of shape (height,
+    /// width), what `surftile render --mask` writes: 0 clean; the imperfection layer's
+    /// ids (dust and patina 1; peeling 1, 2, … for each layer lost); the defects' ids
+    /// (scratch 16, dent 17, pits 18, or their `mask_id`) where a defect changed the
+    /// sample by more than 5% of its depth. A source without layer or defects gives its
+    /// heights and an all-zero mask. At most 2^25 samples per call with a layer.
     #[pyo3(signature = (x, y, width, height, *, step=1.0))]
     fn fill_with_mask<'py>(
         &self,
@@ -464,9 +471,14 @@ impl Surface {
         step: f64,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let region = region_of(x, y, width, height, step)?;
+        let mask = PyArray::<u8, _>::zeros(py, [region.height, region.width], false);
         let Inner::Layered(layer) = &self.inner else {
             let heights = self.fill(py, x, y, width, height, step, None)?;
-            let mask = PyArray::<u8, _>::zeros(py, [region.height, region.width], false);
+            if let Some(defects) = &self.defects {
+                let mut mw = mask.readwrite();
+                let ms = mw.as_slice_mut().map_err(slice_err)?;
+                py.detach(|| defects.fill_ids(&region, ms)).py()?;
+            }
             return Ok((heights, mask.into_any()));
         };
         let samples = region.width * region.height;
@@ -477,7 +489,6 @@ impl Surface {
             ))));
         }
         let heights = PyArray::<f32, _>::zeros(py, [region.height, region.width], false);
-        let mask = PyArray::<u8, _>::zeros(py, [region.height, region.width], false);
         {
             let (mut hw, mut mw) = (heights.readwrite(), mask.readwrite());
             let hs = hw.as_slice_mut().map_err(slice_err)?;
@@ -493,6 +504,16 @@ impl Surface {
                     hs[at..at + part.heights.len()].copy_from_slice(&part.heights);
                     ms[at..at + part.layers.len()].copy_from_slice(&part.layers);
                     row += n;
+                }
+                // The defects' ids over the layer's, where they are set.
+                if let Some(defects) = &self.defects {
+                    let mut ids = vec![0u8; samples];
+                    defects.fill_ids(&region, &mut ids)?;
+                    for (m, &id) in ms.iter_mut().zip(&ids) {
+                        if id != 0 {
+                            *m = id;
+                        }
+                    }
                 }
                 Ok(())
             })
@@ -531,6 +552,12 @@ impl Surface {
         matches!(self.inner, Inner::Layered(_))
     }
 
+    /// Whether defects lie in the surface.
+    #[getter]
+    fn has_defects(&self) -> bool {
+        self.defects.is_some()
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "surftile.Surface(channels={}, seed={}, spacing_um={:?}, height_unit={:?})",
@@ -543,15 +570,17 @@ impl Surface {
 /// milling: e.g. parallel-d4-ae05). `spacing_um` is the pixel spacing in µm a milling
 /// source is drawn at (default 6.1; banks keep their own, models are in pixels).
 /// `imperfect` lays an imperfection layer over it (a `.toml` or a preset: dust, patina,
-/// peeling), `age` multiplies its sources' γ.
+/// peeling), `age` multiplies its sources' γ. `defects` puts defects in it, under the
+/// layer (a `.toml` of [[defect]] entries or a preset: scratches, dents, pits).
 #[pyfunction]
-#[pyo3(signature = (spec, *, spacing_um=None, imperfect=None, age=None))]
+#[pyo3(signature = (spec, *, spacing_um=None, imperfect=None, age=None, defects=None))]
 fn open(
     py: Python<'_>,
     spec: PathBuf,
     spacing_um: Option<f64>,
     imperfect: Option<PathBuf>,
     age: Option<f64>,
+    defects: Option<PathBuf>,
 ) -> PyResult<Source> {
     let mut open = surftile::Open::new(&spec);
     if let Some(s) = spacing_um {
@@ -562,6 +591,9 @@ fn open(
     }
     if let Some(a) = age {
         open = open.age(a);
+    }
+    if let Some(d) = &defects {
+        open = open.defects(d);
     }
     let inner = py.detach(|| open.open()).py()?;
     Ok(Source {

@@ -109,6 +109,30 @@ def test_imperfection_layer_and_mask_equal_the_cli(cli, tmp_path, spec, layer):
     assert same_bits(surface.fill(X, Y, W, H), expected)
 
 
+@pytest.mark.parametrize("layer", [None, "dust"])
+def test_defects_and_their_mask_equal_the_cli(cli, tmp_path, layer):
+    # Dents every few hundred µm of a milled surface drawn at 4 µm a pixel, alone and
+    # under dust: heights and mask ids as `render --defects … --mask` writes them.
+    x, y, w, h = -3000.0, 7.5, 200, 150
+    mask_png = tmp_path / "mask.png"
+    extra = ["--imperfect", layer] if layer else []
+    out = tmp_path / "h.npy"
+    cli("render", "parallel-d4-ae05", "--x", x, "--y", y, "--w", w, "--h", h,
+        "--spacing", 4, "--seed", 6, "--defects", "dents", *extra,
+        "--mask", mask_png, "--out", out)
+    surface = surftile.open("parallel-d4-ae05", spacing_um=4.0, defects="dents",
+                            imperfect=layer).surface(seed=6)
+    assert surface.has_defects and surface.has_layer == bool(layer)
+    heights, mask = surface.fill_with_mask(x, y, w, h)
+    assert same_bits(heights, np.load(out))
+    assert np.array_equal(mask, read_grey_png(mask_png))
+    assert (mask == 17).any(), "no dent in the region: the comparison would be vacuous"
+    info = surftile.open("parallel-d4-ae05", defects="dents").info
+    assert info["defects"]["kinds"] == ["dent"]
+    with pytest.raises(ValueError, match="scratches, dents, pits"):
+        surftile.open("parallel-d4-ae05", defects="dentz")
+
+
 def test_a_source_without_a_layer_has_an_all_zero_mask():
     heights, mask = surftile.open("rock").surface(1).fill_with_mask(0.0, 0.0, 8, 4)
     assert mask.shape == (4, 8) and not mask.any()

@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::imperfect::{ImperfectConfig, Pattern};
 use crate::{Open, Source};
 
-pub use shard::{Prepared, Sample, ShardWritten};
+pub use shard::{Members, Prepared, RunProgress, Sample, ShardWritten};
 
 /// Most samples in a dataset.
 pub const MAX_SAMPLES: u64 = 1_000_000_000;

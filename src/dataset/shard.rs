@@ -12,6 +12,9 @@ use crate::imperfect::Imperfect;
 use crate::raster::Raster;
 use crate::stream::{Region, Surface};
 
+/// A sample's members as (name, bytes), in their order in a shard.
+pub type Members = Vec<(String, Vec<u8>)>;
+
 /// One sample, in memory.
 #[derive(Clone, Debug)]
 pub struct Sample {
@@ -261,7 +264,7 @@ impl Dataset {
     }
 
     /// The members of a sample as (name, bytes), in their order in a shard.
-    pub fn encode(&self, sample: &Sample) -> Result<Vec<(String, Vec<u8>)>> {
+    pub fn encode(&self, sample: &Sample) -> Result<Members> {
         let (w, h) = (sample.heights.width, sample.heights.height);
         let mut out = Vec::with_capacity(self.outputs.len());
         for &o in &self.outputs {
@@ -417,7 +420,7 @@ impl Dataset {
         count: u64,
         sample_at: &(dyn Fn(u64) -> u64 + Sync),
         threads: usize,
-        write: &mut dyn FnMut(u64, Vec<(String, Vec<u8>)>) -> Result<()>,
+        write: &mut dyn FnMut(u64, Members) -> Result<()>,
     ) -> Result<()> {
         use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
         let make = |p: u64| {

@@ -242,14 +242,17 @@ impl DefectConfig {
     }
 
     /// Reads a `.toml`, or a preset name (`tiles/defects/`: scratches, dents, pits).
+    /// A bare name that is neither a file nor a preset is refused with the presets'
+    /// names.
     pub fn load(path: &Path) -> Result<DefectConfig> {
-        if !path.exists()
-            && let Some(text) = path.to_str().and_then(preset)
-        {
-            return DefectConfig::from_toml(text, &path.display().to_string());
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        DefectConfig::from_toml(&text, &path.display().to_string())
+        crate::models::preset_or_file(
+            path,
+            &PRESET_TEXTS,
+            "defects",
+            "a defects .toml file",
+            DefectConfig::from_toml,
+        )
+        .map(|(config, _)| config)
     }
 
     /// Checks every entry key by key.
@@ -384,14 +387,14 @@ fn one_line(s: &str) -> String {
 }
 
 /// The shipped presets, by name.
-fn preset(name: &str) -> Option<&'static str> {
-    match name {
-        "scratches" => Some(include_str!("../../tiles/defects/scratches.toml")),
-        "dents" => Some(include_str!("../../tiles/defects/dents.toml")),
-        "pits" => Some(include_str!("../../tiles/defects/pits.toml")),
-        _ => None,
-    }
-}
+const PRESET_TEXTS: [(&str, &str); 3] = [
+    (
+        "scratches",
+        include_str!("../../tiles/defects/scratches.toml"),
+    ),
+    ("dents", include_str!("../../tiles/defects/dents.toml")),
+    ("pits", include_str!("../../tiles/defects/pits.toml")),
+];
 
 /// Names of the presets.
 pub const PRESETS: [&str; 3] = ["scratches", "dents", "pits"];

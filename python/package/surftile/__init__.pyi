@@ -33,6 +33,9 @@ class Surface:
     @property
     def has_layer(self) -> bool:
         """Whether an imperfection layer lies over the surface."""
+    @property
+    def has_defects(self) -> bool:
+        """Whether defects lie in the surface."""
     @overload
     def height(self, x: float, y: float) -> float: ...
     @overload
@@ -62,7 +65,8 @@ class Surface:
         *,
         step: float = 1.0,
     ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
-        """Heights and the imperfection layer id of every sample (uint8, 0 intact)."""
+        """Heights and the mask id of every sample (uint8, 0 clean): the imperfection
+        layer's ids, the defects' (scratch 16, dent 17, pits 18) where they are set."""
 
 class Source:
     """What `open` returns: a loaded source, placed with a seed by `surface`."""
@@ -102,10 +106,11 @@ def open(
     spacing_um: Optional[float] = None,
     imperfect: Optional[PathLike] = None,
     age: Optional[float] = None,
+    defects: Optional[PathLike] = None,
 ) -> Source:
     """Opens a bank file, a milling or model `.toml`, or a preset name; `spacing_um`
     (µm per pixel) for milling, `imperfect` (a `.toml` or dust, patina, peeling) and its
-    `age`."""
+    `age`, `defects` (a `.toml` or scratches, dents, pits) under the layer."""
 
 def bake(
     exemplar: Union[PathLike, ArrayLike],
