@@ -193,6 +193,34 @@ fn samples_equal_the_surfaces_they_record() {
             .all(|(a, b)| a.to_bits() == b.to_bits());
         assert!(same, "sample {k}: heights differ from the rebuilt surface");
         assert_eq!(s.mask.as_deref(), Some(&ids[..]), "sample {k}: mask");
+        // Every defect pixel of the mask lies in the mask box of a defect of its id.
+        let boxes: Vec<(u64, [u64; 4])> = s.meta["defects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| !p["mask_box"].is_null())
+            .map(|p| {
+                let b = &p["mask_box"];
+                let b = [0, 1, 2, 3].map(|i| b[i].as_u64().unwrap());
+                assert!(
+                    b[0] <= b[2] && b[2] < 48 && b[1] <= b[3] && b[3] < 40,
+                    "{b:?}"
+                );
+                (p["mask_id"].as_u64().unwrap(), b)
+            })
+            .collect();
+        for (i, &id) in ids.iter().enumerate() {
+            let (col, row) = ((i % 48) as u64, (i / 48) as u64);
+            if id >= 16 {
+                let covered = boxes.iter().any(|&(bid, b)| {
+                    bid == id as u64 && (b[0]..=b[2]).contains(&col) && (b[1]..=b[3]).contains(&row)
+                });
+                assert!(
+                    covered,
+                    "sample {k}: ({col}, {row}) id {id} outside the boxes"
+                );
+            }
+        }
         layered += !s.meta["layer"].is_null() as usize;
         defected += s.meta.get("defect_entries").is_some() as usize;
         marked += ids.iter().any(|&i| i >= 16) as usize;

@@ -158,6 +158,9 @@ impl Dataset {
         let mut heights = vec![0.0f32; grown.width * grown.height * c];
         let masked = self.outputs.contains(&Output::Mask);
         let mut mask = masked.then(|| vec![0u8; w * h]);
+        // The defects placed with their mask boxes, in a region grown by `boxed_in`.
+        let mut boxed = Vec::new();
+        let mut boxed_in = 0;
         match draw.layer {
             Some((e, age)) => {
                 let layer = &self.layers[e];
@@ -170,6 +173,10 @@ impl Dataset {
                 let imperfect = Imperfect::new(surface, &config, layer.base.as_deref(), draw.seed)?;
                 let fill = imperfect.fill_layers(&grown)?;
                 heights = fill.heights;
+                let mut ids = vec![0u8; w * h];
+                if let Some(found) = &defects {
+                    boxed = found.fill_ids_boxed(&region, &mut ids)?;
+                }
                 if let Some(m) = &mut mask {
                     for (row, out) in m.chunks_exact_mut(w).enumerate() {
                         let from = &fill.layers[(row + pad) * grown.width + pad..][..w];
@@ -177,13 +184,10 @@ impl Dataset {
                             *o = if id == 0 { 0 } else { id + layer.id_offset };
                         }
                     }
-                    if let Some(found) = &defects {
-                        let mut ids = vec![0u8; w * h];
-                        found.fill_ids(&region, &mut ids)?;
-                        for (o, &id) in m.iter_mut().zip(&ids) {
-                            if id != 0 {
-                                *o = id;
-                            }
+                    // The defects' ids over the layer's, where they are set.
+                    for (o, &id) in m.iter_mut().zip(&ids) {
+                        if id != 0 {
+                            *o = id;
                         }
                     }
                 }
@@ -192,7 +196,8 @@ impl Dataset {
                 inner.fill_rows(&grown, 0..grown.height, &mut heights);
                 if let Some(found) = &defects {
                     let mut ids = vec![0u8; grown.width * grown.height];
-                    found.apply(&grown, &mut heights, &mut ids)?;
+                    boxed = found.apply(&grown, &mut heights, &mut ids)?;
+                    boxed_in = pad;
                     if let Some(m) = &mut mask {
                         for (row, out) in m.chunks_exact_mut(w).enumerate() {
                             out.copy_from_slice(&ids[(row + pad) * grown.width + pad..][..w]);
@@ -239,16 +244,27 @@ impl Dataset {
                 "mask_id_offset": self.layers[e].id_offset,
             });
         }
-        if let Some(found) = &defects {
+        if defects.is_some() {
             meta["defect_entries"] = serde_json::json!(draw.defects);
-            // A placed defect's entry is its index among the drawn ones.
-            let list: Vec<_> = found
-                .placed_over(&region)
+            // A placed defect's entry is its index among the drawn ones; those whose
+            // boxes meet the region (not only its margin) are listed.
+            let (xa, ya) = (draw.x as f64, draw.y as f64);
+            let (xb, yb) = (xa + (w - 1) as f64, ya + (h - 1) as f64);
+            let list: Vec<_> = boxed
                 .iter()
-                .map(|p| {
+                .filter(|(p, _)| {
+                    let b = p.bbox;
+                    b[0] <= xb && b[2] >= xa && b[1] <= yb && b[3] >= ya
+                })
+                .map(|(p, mask_box)| {
                     let entry = draw.defects[p.entry];
                     let kind = self.spec.defect[entry].defect.name();
-                    defect_json(p, kind, entry, spacing)
+                    let mut v = defect_json(p, kind, entry, spacing);
+                    v["mask_box"] = match mask_box.and_then(|b| in_sample(b, boxed_in, w, h)) {
+                        Some(b) => serde_json::json!(b),
+                        None => serde_json::Value::Null,
+                    };
+                    v
                 })
                 .collect();
             meta["defects"] = list.into();
@@ -767,6 +783,20 @@ impl Finish {
         }
         result
     }
+}
+
+/// A mask box of a region grown by `pad` samples on every side, in the samples of the
+/// `w × h` region itself (clipped); `None` where it lies in the margin only.
+fn in_sample(b: [usize; 4], pad: usize, w: usize, h: usize) -> Option<[usize; 4]> {
+    let inside = b[2] >= pad && b[3] >= pad && b[0] < pad + w && b[1] < pad + h;
+    inside.then(|| {
+        [
+            b[0].saturating_sub(pad),
+            b[1].saturating_sub(pad),
+            (b[2] - pad).min(w - 1),
+            (b[3] - pad).min(h - 1),
+        ]
+    })
 }
 
 /// Appends one member with fixed metadata (mode 644, owner 0, time 0), so that a

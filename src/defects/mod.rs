@@ -834,6 +834,12 @@ impl Defects {
     /// The mask ids over `region` (0 where no defect changed a sample by more than
     /// [`MASK_FRACTION`] of its depth), row-major.
     pub fn fill_ids(&self, region: &Region, ids: &mut [u8]) -> Result<()> {
+        self.fill_ids_boxed(region, ids).map(|_| ())
+    }
+
+    /// [`Defects::fill_ids`], returning the defects placed over `region` with their
+    /// mask boxes ([`Boxed`]).
+    pub fn fill_ids_boxed(&self, region: &Region, ids: &mut [u8]) -> Result<Vec<Boxed>> {
         region.validate()?;
         if ids.len() != region.width * region.height {
             return Err(Error::param(
@@ -848,19 +854,25 @@ impl Defects {
             ));
         }
         let placed = self.placed_over(region);
-        let mut row = RowChanges::new(region.width);
+        let mut row = RowChanges::new(region.width, placed.len());
         for (r, out) in ids.chunks_exact_mut(region.width).enumerate() {
             row.compute(&placed, region, r);
             out.copy_from_slice(&row.ids);
         }
-        Ok(())
+        Ok(row.boxed(placed))
     }
 
     /// Adds the defects to `heights` (one channel, row-major over `region`) and writes
     /// their mask ids to `ids`, in one pass on the calling thread: the heights
     /// [`Defected`] gives over the same inner heights, and the ids of
-    /// [`Defects::fill_ids`].
-    pub fn apply(&self, region: &Region, heights: &mut [f32], ids: &mut [u8]) -> Result<()> {
+    /// [`Defects::fill_ids`]. Returns the defects placed over `region` with their mask
+    /// boxes.
+    pub fn apply(
+        &self,
+        region: &Region,
+        heights: &mut [f32],
+        ids: &mut [u8],
+    ) -> Result<Vec<Boxed>> {
         region.validate()?;
         let n = region.width * region.height;
         if heights.len() != n || ids.len() != n {
@@ -874,7 +886,7 @@ impl Defects {
             ));
         }
         let placed = self.placed_over(region);
-        let mut row = RowChanges::new(region.width);
+        let mut row = RowChanges::new(region.width, placed.len());
         let rows = heights
             .chunks_exact_mut(region.width)
             .zip(ids.chunks_exact_mut(region.width));
@@ -883,7 +895,7 @@ impl Defects {
             row.add_to(hs);
             is.copy_from_slice(&row.ids);
         }
-        Ok(())
+        Ok(row.boxed(placed))
     }
 
     /// The height change at (x, y) and the mask id it sets (0: none), over `placed`.
@@ -945,7 +957,7 @@ impl<S: Surface> Defected<S> {
 
     /// Adds the defects of `placed` to rows `rows` of `region` in `out`.
     fn add_rows(placed: &[Placed], region: &Region, rows: Range<usize>, out: &mut [f32]) {
-        let mut changes = RowChanges::new(region.width);
+        let mut changes = RowChanges::new(region.width, 0);
         for (r, row) in rows.zip(out.chunks_mut(region.width)) {
             changes.compute(placed, region, r);
             changes.add_to(row);
@@ -961,15 +973,34 @@ struct RowChanges {
     dz: Vec<f64>,
     strongest: Vec<f64>,
     ids: Vec<u8>,
+    /// Per placed defect, the columns and rows (first, first, last, last) where it
+    /// changed a sample by more than [`MASK_FRACTION`] of its depth, over the rows
+    /// computed so far.
+    boxes: Vec<[usize; 4]>,
 }
 
+/// A placed defect and its mask box: the first and last column and row (inclusive,
+/// in samples of the region) where it changed a sample by more than [`MASK_FRACTION`]
+/// of its depth, whether or not its id won there; `None` where it changed none.
+pub type Boxed = (Placed, Option<[usize; 4]>);
+
 impl RowChanges {
-    fn new(width: usize) -> RowChanges {
+    fn new(width: usize, defects: usize) -> RowChanges {
         RowChanges {
             dz: vec![0.0; width],
             strongest: vec![0.0; width],
             ids: vec![0; width],
+            boxes: vec![[usize::MAX, usize::MAX, 0, 0]; defects],
         }
+    }
+
+    /// The placed defects with their boxes.
+    fn boxed(self, placed: Vec<Placed>) -> Vec<Boxed> {
+        placed
+            .into_iter()
+            .zip(self.boxes)
+            .map(|(p, b)| (p, (b[0] != usize::MAX).then_some(b)))
+            .collect()
     }
 
     /// The changes of `placed` along row `row` of `region`.
@@ -990,7 +1021,7 @@ impl RowChanges {
                 (first, last)
             })
         };
-        for p in placed {
+        for (i, p) in placed.iter().enumerate() {
             let [one, two] = p.row_spans(y).map(|s| s.and_then(columns));
             // Two spans (a scratch's arc crossing the row twice) widened into each other
             // are visited once.
@@ -1004,9 +1035,14 @@ impl RowChanges {
                     if v != 0.0 {
                         self.dz[col] += v * p.z_scale;
                         let rel = v.abs() / p.depth_px;
-                        if rel > MASK_FRACTION && rel > self.strongest[col] {
-                            self.strongest[col] = rel;
-                            self.ids[col] = p.id;
+                        if rel > MASK_FRACTION {
+                            if rel > self.strongest[col] {
+                                self.strongest[col] = rel;
+                                self.ids[col] = p.id;
+                            }
+                            if let Some(b) = self.boxes.get_mut(i) {
+                                *b = [b[0].min(col), b[1].min(row), b[2].max(col), b[3].max(row)];
+                            }
                         }
                     }
                 }
