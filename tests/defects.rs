@@ -3,6 +3,8 @@
 
 mod common;
 
+use std::path::Path;
+
 use surftile::defects::{DefectConfig, Defected, Defects, PRESETS, Shape};
 use surftile::stream::{BlendSurface, Region, Surface};
 
@@ -307,10 +309,11 @@ fn bad_configurations_are_refused_by_name() {
     assert!(e.contains("invalid height unit = mm"), "{e}");
 }
 
-/// Fills visit, on each row, only the columns a defect's groove, rim or box may reach:
-/// every sample of dense curved and straight scratches, dents and pits, at steps below,
-/// at and above one pixel, equals the point-by-point sum over every defect
-/// ([`Defects::at`]), heights and mask ids alike.
+/// Fills visit, on each row, only the columns a defect's groove, rim or box may reach,
+/// and at coarse steps (more cells than samples) sum sample by sample: every sample of
+/// dense curved and straight scratches, dents and pits, at steps below, at and far
+/// above one pixel, equals the point-by-point sum over every defect ([`Defects::at`]),
+/// heights and mask ids alike.
 #[test]
 fn row_culling_equals_every_point() {
     let c = config(
@@ -356,7 +359,7 @@ spread_um = 8.0
     let defects = Defects::new(&c, 1.0, "um", 9).unwrap();
     let surface = Defected::new(Flat, defects.clone()).unwrap();
     let (mut changed, mut marked) = (0, 0);
-    for step in [0.37, 1.0, 2.5] {
+    for step in [0.37, 1.0, 2.5, 40.0] {
         let region = Region::new(-7000.3, 12345.6, 220, 170).with_step(step);
         let mut h = vec![0.0f32; region.len()];
         surface.fill(&region, &mut h).unwrap();
@@ -379,5 +382,45 @@ spread_um = 8.0
     assert!(
         changed > 10_000 && marked > 5_000,
         "{changed} changed, {marked} marked"
+    );
+}
+
+/// Cells under a pixel are refused (they would place sub-pixel defects by the million),
+/// and a render zoomed far out over small cells costs its samples, not its cells.
+#[test]
+fn sub_pixel_cells_are_refused_and_coarse_steps_stay_cheap() {
+    let tiny = config(
+        "[[defect]]\nkind = \"dent\"\ncell_um = 0.01\nprobability = 0.5\n\
+         diameter_um = [0.001, 0.002]\ndepth_um = [0.0001, 0.0002]\n",
+    );
+    let e = Defects::new(&tiny, 6.1, "um", 1).unwrap_err().to_string();
+    assert!(
+        e.contains("cell_um = 0.01") && e.contains("pixel spacing"),
+        "{e}"
+    );
+    let dents = DefectConfig::load(Path::new("dents")).unwrap();
+    let defects = Defects::new(&dents, 6.1, "um", 1).unwrap();
+    let surface = Defected::new(Flat, defects.clone()).unwrap();
+    // 10⁶ pixels a sample: 10¹¹ cells under the region, 65536 samples.
+    let region = Region::new(-3e8, 2e8, 256, 256).with_step(1e6);
+    let start = std::time::Instant::now();
+    let mut h = vec![0.0f32; region.len()];
+    surface.fill(&region, &mut h).unwrap();
+    let mut ids = vec![0u8; region.len()];
+    defects.fill_ids(&region, &mut ids).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    // A generous bound (a loaded machine): listing the cells would take hours.
+    assert!(seconds < 60.0, "{seconds} s");
+    let mut changed = 0;
+    for k in (0..region.len()).step_by(7) {
+        let (x, y) = (region.x_at(k % 256), region.y_at(k / 256));
+        assert_eq!(h[k].to_bits(), surface.height(x, y).to_bits());
+        let (_, id) = Defects::at(&defects.placed_in(x, y, x, y), x, y);
+        assert_eq!(ids[k], id);
+        changed += (h[k] != 0.0) as usize;
+    }
+    assert!(
+        changed > 0,
+        "no dent under any sample: the comparison would be vacuous"
     );
 }

@@ -684,6 +684,20 @@ impl Defects {
                 ));
             }
         };
+        // Cells under a pixel would place sub-pixel defects, millions to a row, and a
+        // fill would list them all.
+        for (n, d) in config.defect.iter().enumerate() {
+            if d.cell_um() < spacing_um {
+                return Err(Error::param(
+                    format!("defect {} ({}): cell_um", n + 1, d.name()),
+                    crate::error::short(d.cell_um()),
+                    format!(
+                        "at least the surface's pixel spacing ({} µm): a cell under a pixel places sub-pixel defects",
+                        crate::error::short(spacing_um)
+                    ),
+                ));
+            }
+        }
         Ok(Defects {
             config: config.clone(),
             seed,
@@ -831,6 +845,45 @@ impl Defects {
         self.placed_in(xa.min(xb), ya.min(yb), xa.max(xb), ya.max(yb))
     }
 
+    /// Whether listing the defects over `region` would visit more cells than sampling
+    /// each of its samples does (3 × 3 cells of each entry a sample): a coarse step over
+    /// small cells. Fills then sum sample by sample ([`Defects::at`], the same bits), so
+    /// that their cost stays bounded by their samples.
+    fn too_many_cells(&self, region: &Region) -> bool {
+        let (w, h) = (
+            region.width as f64 * region.step,
+            region.height as f64 * region.step,
+        );
+        let cells: f64 = self
+            .config
+            .defect
+            .iter()
+            .map(|d| {
+                let c = d.cell_um() / self.spacing_um;
+                (w / c + 3.0) * (h / c + 3.0)
+            })
+            .sum();
+        cells > 9.0 * self.config.defect.len() as f64 * (region.width * region.height) as f64
+    }
+
+    /// The change and mask id at each sample of rows `rows` of `region`, each from the
+    /// defects of its own 3 × 3 cells (see [`Defects::too_many_cells`]).
+    fn each_sample(
+        &self,
+        region: &Region,
+        rows: Range<usize>,
+        mut f: impl FnMut(usize, usize, f64, u8),
+    ) {
+        for r in rows {
+            let y = region.y_at(r);
+            for col in 0..region.width {
+                let x = region.x_at(col);
+                let (dz, id) = Defects::at(&self.placed_in(x, y, x, y), x, y);
+                f(r, col, dz, id);
+            }
+        }
+    }
+
     /// The mask ids over `region` (0 where no defect changed a sample by more than
     /// [`MASK_FRACTION`] of its depth), row-major.
     pub fn fill_ids(&self, region: &Region, ids: &mut [u8]) -> Result<()> {
@@ -852,6 +905,11 @@ impl Defects {
                     region.height
                 ),
             ));
+        }
+        if self.too_many_cells(region) {
+            let w = region.width;
+            self.each_sample(region, 0..region.height, |r, c, _, id| ids[r * w + c] = id);
+            return Ok(Vec::new());
         }
         let placed = self.placed_over(region);
         let mut row = RowChanges::new(region.width, placed.len());
@@ -884,6 +942,14 @@ impl Defects {
                     region.width, region.height
                 ),
             ));
+        }
+        if self.too_many_cells(region) {
+            let w = region.width;
+            self.each_sample(region, 0..region.height, |r, c, dz, id| {
+                add(&mut heights[r * w + c], dz);
+                ids[r * w + c] = id;
+            });
+            return Ok(Vec::new());
         }
         let placed = self.placed_over(region);
         let mut row = RowChanges::new(region.width, placed.len());
@@ -1053,10 +1119,15 @@ impl RowChanges {
     /// Adds the changes to a row of heights.
     fn add_to(&self, row: &mut [f32]) {
         for (v, &dz) in row.iter_mut().zip(&self.dz) {
-            if dz != 0.0 {
-                *v = (*v as f64 + dz) as f32;
-            }
+            add(v, dz);
         }
+    }
+}
+
+/// Adds a defect change to a height (nothing where there is none), as every path does.
+fn add(v: &mut f32, dz: f64) {
+    if dz != 0.0 {
+        *v = (*v as f64 + dz) as f32;
     }
 }
 
@@ -1076,16 +1147,30 @@ impl<S: Surface> Surface for Defected<S> {
 
     fn fill_rows(&self, region: &Region, rows: Range<usize>, out: &mut [f32]) {
         self.inner.fill_rows(region, rows.clone(), out);
-        let part = region.sub(0, rows.start, region.width, rows.len());
-        let placed = match part {
-            Ok(p) => self.placed_over(&p),
-            Err(_) => return,
+        let Ok(part) = region.sub(0, rows.start, region.width, rows.len()) else {
+            return;
         };
-        Self::add_rows(&placed, region, rows, out);
+        if self.defects.too_many_cells(&part) {
+            let (w, first) = (region.width, rows.start);
+            self.defects.each_sample(region, rows, |r, c, dz, _| {
+                add(&mut out[(r - first) * w + c], dz)
+            });
+            return;
+        }
+        Self::add_rows(&self.placed_over(&part), region, rows, out);
     }
 
     fn fill(&self, region: &Region, out: &mut [f32]) -> Result<()> {
         self.inner.fill(region, out)?;
+        if self.defects.too_many_cells(region) {
+            // Bands of the fill, each sample from its own cells.
+            return for_bands(region, 1, out, default_threads(), 16, |rows, chunk| {
+                let (w, first) = (region.width, rows.start);
+                self.defects.each_sample(region, rows, |r, c, dz, _| {
+                    add(&mut chunk[(r - first) * w + c], dz)
+                })
+            });
+        }
         let placed = self.placed_over(region);
         for_bands(region, 1, out, default_threads(), 16, |rows, chunk| {
             Self::add_rows(&placed, region, rows, chunk)
