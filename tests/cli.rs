@@ -1321,3 +1321,53 @@ fn dataset_writes_resumes_and_refuses() {
     assert!(!dir.path().join("new").exists());
     assert_eq!(std::fs::read(dir.path().join("file")).unwrap(), b"x");
 }
+
+/// `render --out FILE.x3p` writes the heights the `.npy` output holds, with the spacing
+/// and the command in the X3P record, and `stats` and `bake` read it as an exemplar.
+#[test]
+fn x3p_outputs_read_back_as_exemplars() {
+    let dir = tempfile::tempdir().unwrap();
+    let region = [
+        "parallel-d4-ae05",
+        "--w",
+        "128",
+        "--h",
+        "96",
+        "--x",
+        "-300",
+        "--spacing",
+        "4",
+    ];
+    for out in ["h.x3p", "h.npy"] {
+        let mut args = vec!["render"];
+        args.extend(region);
+        args.extend(["--out", out]);
+        let r = surftile(dir.path(), &args);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+    }
+    let read =
+        |name: &str| surftile::io::read_image(&dir.path().join(name), &Default::default()).unwrap();
+    let (x3p, npy) = (read("h.x3p"), read("h.npy"));
+    assert_eq!(x3p.raster.data.len(), npy.raster.data.len());
+    assert!(
+        x3p.raster
+            .data
+            .iter()
+            .zip(&npy.raster.data)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+    assert!((x3p.spacing_um.unwrap() / 4.0 - 1.0).abs() < 1e-12);
+    let bytes = std::fs::read(dir.path().join("h.x3p")).unwrap();
+    let mut z = zip::ZipArchive::new(std::io::Cursor::new(bytes)).unwrap();
+    let mut xml = String::new();
+    std::io::Read::read_to_string(&mut z.by_name("main.xml").unwrap(), &mut xml).unwrap();
+    assert!(xml.contains("render parallel-d4-ae05"), "{xml}");
+    let r = surftile(dir.path(), &["stats", "h.x3p", "h.npy", "--no-structure"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let r = surftile(
+        dir.path(),
+        &["bake", "h.x3p", "--method", "rpn", "--out", "h.bank"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(dir.path().join("h.bank").exists());
+}

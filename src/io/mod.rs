@@ -2,11 +2,12 @@
 //!
 //! Read: PNG 8/16-bit (grey, grey+alpha, RGB, RGBA; alpha is dropped), TIFF (8/16-bit
 //! integer, 32/64-bit float; grey or RGB), NumPy `.npy` (f32, f64, u8, u16, i16, i32; C or
-//! Fortran order; H×W or H×W×C), raw little-endian f32 with a given shape.
+//! Fortran order; H×W or H×W×C), raw little-endian f32 with a given shape, and X3P
+//! (ISO 25178-72; heights in µm).
 //!
 //! Write: 16-bit PNG (the height range is stored in a `surftile` text chunk so heights
-//! can be recovered), 32-bit float TIFF (metadata in ImageDescription) and `.npy`
-//! (float32). The pixel spacing (µm per pixel) travels in the PNG and TIFF metadata; for
+//! can be recovered), 32-bit float TIFF (metadata in ImageDescription), `.npy`
+//! (float32) and X3P (float64 metres, the command line in its comment). The pixel spacing (µm per pixel) travels in the PNG and TIFF metadata; for
 //! `.npy` and raw files it comes from the caller (the CLI's `--spacing`).
 //!
 //! Every write goes to a temporary file beside the target and is renamed into place
@@ -16,6 +17,7 @@ mod npy;
 mod png;
 mod raw;
 mod tiff;
+mod x3p;
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -91,6 +93,8 @@ pub enum Format {
     Npy,
     /// `.raw`, `.f32`, `.bin`: little-endian f32
     Raw,
+    /// `.x3p`: ISO 25178-72
+    X3p,
 }
 
 impl Format {
@@ -106,8 +110,9 @@ impl Format {
             "tif" | "tiff" => Ok(Format::Tiff),
             "npy" => Ok(Format::Npy),
             "raw" | "f32" | "bin" => Ok(Format::Raw),
+            "x3p" => Ok(Format::X3p),
             _ => Err(Error::Unsupported(format!(
-                "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy or .raw/.f32",
+                "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy, .x3p or .raw/.f32",
                 path.display()
             ))),
         }
@@ -136,6 +141,7 @@ pub fn read_image_bytes(
         Format::Png => png::read(bytes, what)?,
         Format::Tiff => tiff::read(bytes, what)?,
         Format::Npy => npy::read(bytes, what)?,
+        Format::X3p => x3p::read(bytes, what)?,
         Format::Raw => {
             let shape = options.raw_shape.ok_or_else(|| {
                 Error::param("raw-shape", "none", "WxH or WxHxC for a raw f32 file")
@@ -167,6 +173,11 @@ pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> R
         Format::Png => png::write16(w, raster, spacing_um),
         Format::Tiff => tiff::write(w, raster, spacing_um),
         Format::Npy => npy::write(w, raster),
+        Format::X3p => {
+            // The generating command, as the X3P record's comment.
+            let command: Vec<String> = std::env::args().collect();
+            x3p::write(w, raster, spacing_um, &command.join(" "))
+        }
         Format::Raw => {
             for v in &raster.data {
                 std::io::Write::write_all(w, &v.to_le_bytes()).map_err(|e| Error::io(path, e))?;
