@@ -76,11 +76,13 @@ fn count(doc: &roxmltree::Document, path: &[&str], what: &str) -> Result<usize> 
 }
 
 /// Reads at most `limit` bytes of a zip entry (a lying size or a decompression bomb
-/// stops there).
+/// stops there). What is reserved up front is at most `file_len` (the archive's size),
+/// whatever size the entry claims; more grows only as data arrives.
 fn read_entry<R: Read + Seek>(
     archive: &mut zip::ZipArchive<R>,
     name: &str,
     limit: u64,
+    file_len: usize,
     what: &str,
 ) -> Result<Option<Vec<u8>>> {
     let mut entry = match archive.by_name(name) {
@@ -88,7 +90,8 @@ fn read_entry<R: Read + Seek>(
         Err(zip::result::ZipError::FileNotFound) => return Ok(None),
         Err(e) => return Err(bad(what, format!("{name}: {e}"))),
     };
-    let mut out = Vec::with_capacity(entry.size().min(limit) as usize);
+    let reserve = entry.size().min(limit).min(file_len as u64);
+    let mut out = Vec::with_capacity(reserve as usize);
     (&mut entry)
         .take(limit)
         .read_to_end(&mut out)
@@ -107,8 +110,14 @@ fn md5_hex(bytes: &[u8]) -> String {
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let mut archive = zip::ZipArchive::new(Cursor::new(bytes))
         .map_err(|e| bad(what, format!("not an X3P file (a zip archive): {e}")))?;
-    let xml = read_entry(&mut archive, "main.xml", MAX_XML_BYTES + 1, what)?
-        .ok_or_else(|| bad(what, "an X3P archive without main.xml"))?;
+    let xml = read_entry(
+        &mut archive,
+        "main.xml",
+        MAX_XML_BYTES + 1,
+        bytes.len(),
+        what,
+    )?
+    .ok_or_else(|| bad(what, "an X3P archive without main.xml"))?;
     if xml.len() as u64 > MAX_XML_BYTES {
         return Err(bad(what, format!("main.xml is over {MAX_XML_BYTES} bytes")));
     }
@@ -168,12 +177,13 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let link = find(&doc, &["Record3", "DataLink", "PointDataLink"])
         .filter(|l| !l.is_empty())
         .unwrap_or("bindata/data.bin");
-    let data = read_entry(&mut archive, link, expected + 1, what)?.ok_or_else(|| {
-        bad(
-            what,
-            format!("the X3P archive has no {link} (main.xml's point data)"),
-        )
-    })?;
+    let data =
+        read_entry(&mut archive, link, expected + 1, bytes.len(), what)?.ok_or_else(|| {
+            bad(
+                what,
+                format!("the X3P archive has no {link} (main.xml's point data)"),
+            )
+        })?;
     if data.len() as u64 != expected {
         return Err(bad(
             what,
@@ -194,26 +204,28 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             ));
         }
     }
-    let valid =
-        match find(&doc, &["Record3", "DataLink", "ValidPointsLink"]).filter(|l| !l.is_empty()) {
-            None => None,
-            Some(link) => {
-                let bits = n.div_ceil(8) as u64;
-                let v = read_entry(&mut archive, link, bits + 1, what)?.ok_or_else(|| {
+    let valid = match find(&doc, &["Record3", "DataLink", "ValidPointsLink"])
+        .filter(|l| !l.is_empty())
+    {
+        None => None,
+        Some(link) => {
+            let bits = n.div_ceil(8) as u64;
+            let v =
+                read_entry(&mut archive, link, bits + 1, bytes.len(), what)?.ok_or_else(|| {
                     bad(
                         what,
                         format!("the X3P archive has no {link} (main.xml's valid points)"),
                     )
                 })?;
-                if (v.len() as u64) < bits {
-                    return Err(bad(
-                        what,
-                        format!("{link} holds {} bytes; {n} points need {bits}", v.len()),
-                    ));
-                }
-                Some(v)
+            if (v.len() as u64) < bits {
+                return Err(bad(
+                    what,
+                    format!("{link} holds {} bytes; {n} points need {bits}", v.len()),
+                ));
             }
-        };
+            Some(v)
+        }
+    };
     // Metres (after the Z axis's scale and offset) to µm.
     let to_um = |v: f64| ((v * z_scale + z_offset) / UM) as f32;
     let mut heights: Vec<f32> = match z_type {

@@ -92,7 +92,7 @@ def generate(
 
     - ``engine="local"``: on this machine, each shard's samples on ``workers`` threads
       (None: every core). Needs nothing beyond this package.
-    - ``engine="ray"``: one Ray task per shard (``pip install surftile[ray]``), on the
+    - ``engine="ray"``: one Ray task per shard (``pip install "./python[ray]"``), on the
       cluster at ``address`` (``"auto"``, ``"ray://host:10001"``, ``"host:6379"``), or
       on a local Ray started for the job with ``workers`` CPUs when ``address`` is None
       and Ray is not yet initialised. Each task renders its shard on one thread. Tasks
