@@ -7,8 +7,9 @@
 //!
 //! Write: 16-bit PNG (the height range is stored in a `surftile` text chunk so heights
 //! can be recovered), 32-bit float TIFF (metadata in ImageDescription), `.npy`
-//! (float32) and X3P (float64 metres, the command line in its comment). The pixel spacing (µm per pixel) travels in the PNG and TIFF metadata; for
-//! `.npy` and raw files it comes from the caller (the CLI's `--spacing`).
+//! (float32) and X3P (float64 metres, the command line in its comment). The pixel
+//! spacing (µm per pixel) travels in the PNG, TIFF and X3P metadata; for `.npy` and raw
+//! files it comes from the caller (the CLI's `--spacing`).
 //!
 //! Every write goes to a temporary file beside the target and is renamed into place
 //! only when complete, so a failed write never leaves a half-written output.
