@@ -33,10 +33,7 @@ fn roller_bank() -> Bank {
         .build()
         .unwrap()
         .bake(
-            &ImageFile {
-                raster: common::near_regular(256, 256, u, v, 5),
-                spacing_um: None,
-            },
+            &ImageFile::new(common::near_regular(256, 256, u, v, 5), None),
             "synthetic",
             &mut |_| {},
         )

@@ -12,7 +12,10 @@ use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
 use surftile::demo::run_demo;
-use surftile::io::{ReadOptions, parse_shape, read_image, write_heights};
+use surftile::io::{
+    ImageFile, ReadOptions, Unit, WriteMeta, parse_shape, read_image, write_heights,
+    write_heights_with,
+};
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::models::rsgf::{Join, Metric};
 use surftile::models::synth::SynthParams;
@@ -186,7 +189,7 @@ enum Command {
         #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u64,
         /// Plane levelling: auto (height maps only), plane or none.
-        #[arg(long, value_enum, default_value_t = Leveling::Auto)]
+        #[arg(long, default_value_t = Leveling::Auto)]
         level: Leveling,
         /// Integer down-sampling factor to a coarser spacing.
         #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
@@ -498,18 +501,27 @@ enum Command {
         #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
         spacing: f64,
     },
-    /// Quality figures of B (a synthesis) against A (an exemplar), as JSON.
+    /// ISO 25178 parameters of a height map (A alone), or quality figures of B (a
+    /// synthesis) against A (an exemplar), on the scale-limited surface, as JSON.
     Stats {
-        /// Exemplar height map.
+        /// Exemplar height map (any readable format: instrument files, X3P, npy, tiff, png).
         a: PathBuf,
-        /// Synthesised height map.
-        b: PathBuf,
+        /// Synthesised height map; without it, the figures of A alone.
+        b: Option<PathBuf>,
         /// Cell size in pixels for the seam score of B.
         #[arg(long, allow_negative_numbers = true)]
         cell: Option<usize>,
-        /// Plane levelling of both maps before comparing.
-        #[arg(long, value_enum, default_value_t = Leveling::Plane)]
+        /// Form removal (F-operator): plane, poly:N (least-squares polynomial of total
+        /// degree N) or none.
+        #[arg(long, default_value_t = Leveling::Plane)]
         level: Leveling,
+        /// Gaussian L-filter (ISO 16610-61) cut-off wavelength in µm: wavelengths longer
+        /// than it are removed (needs the spacing, from the file or --spacing).
+        #[arg(long, value_name = "UM", allow_negative_numbers = true)]
+        lfilter: Option<f64>,
+        /// Pixel spacing in µm where the file gives none (npy, raw), or to override it.
+        #[arg(long, allow_negative_numbers = true)]
+        spacing: Option<f64>,
         /// Fill missing (NaN) points smoothly instead of refusing a map.
         #[arg(long)]
         fill_missing: bool,
@@ -520,6 +532,38 @@ enum Command {
         /// score, seams at any phase), which are computed over every channel.
         #[arg(long)]
         no_structure: bool,
+    },
+    /// Convert a height map between formats: any readable file (instrument formats,
+    /// X3P, npy, tiff, png) to .x3p, .npy, .tif or 16-bit .png, keeping spacing and unit.
+    /// Prints what it read: grid, spacing, unit and missing points.
+    Convert {
+        /// Input file.
+        input: PathBuf,
+        /// Output file: .x3p, .npy, .tif/.tiff or .png (16-bit).
+        output: PathBuf,
+        /// Height unit of the output's samples: um, nm, mm or m, or "file" for the
+        /// input file's own (X3P always stores metres; PNG and TIFF record the unit).
+        #[arg(long, default_value = "um")]
+        unit: String,
+        /// Form removal (F-operator): none, plane or poly:N.
+        #[arg(long, default_value_t = Leveling::None)]
+        level: Leveling,
+        /// Gaussian L-filter (ISO 16610-61) cut-off wavelength in µm: keep the roughness
+        /// (wavelengths shorter than it); with --waviness, keep the rest instead.
+        #[arg(long, value_name = "UM", allow_negative_numbers = true)]
+        lfilter: Option<f64>,
+        /// With --lfilter: write the waviness (the filter's low-pass output).
+        #[arg(long, requires = "lfilter")]
+        waviness: bool,
+        /// Pixel spacing in µm where the file gives none (npy, raw), or to override it.
+        #[arg(long, allow_negative_numbers = true)]
+        spacing: Option<f64>,
+        /// Fill missing points smoothly (needed for PNG outputs of maps with any).
+        #[arg(long)]
+        fill_missing: bool,
+        /// Shape of a raw f32 input: WxH.
+        #[arg(long)]
+        raw_shape: Option<String>,
     },
     /// Estimate the two translation vectors of a near-regular image (seed 002 §3.3):
     /// prints v1, v2 (pixels) and the goodness of eq. 9.
@@ -802,6 +846,154 @@ fn dataset_command(
         prepared.todo.len(),
         prepared.complete.len(),
         total as f64 / seconds.max(1e-9)
+    );
+    Ok(())
+}
+
+/// The operators `stats` and `convert` applied, named in their reports (ISO 25178-3).
+#[derive(serde::Serialize)]
+struct Operators {
+    /// The F-operator: `poly:N`, `plane` or `none`.
+    f: String,
+    /// The L-filter: `gaussian λc = … µm (ISO 16610-61)`, or none.
+    l: Option<String>,
+}
+
+impl Operators {
+    fn new(level: Leveling, lfilter: Option<f64>) -> Operators {
+        Operators {
+            f: level.to_string(),
+            l: lfilter.map(|l| {
+                format!("gaussian λc = {l} µm (ISO 16610-61, zeroth-order regression at edges)")
+            }),
+        }
+    }
+}
+
+/// `image` with its x and y spacing set to `spacing` µm where given (checked positive).
+fn with_spacing(mut image: ImageFile, spacing: Option<f64>) -> Result<ImageFile> {
+    if let Some(s) = spacing {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(Error::param("spacing", s, "a positive pixel spacing in µm"));
+        }
+        image.spacing_um = Some(s);
+        image.spacing_y_um = None;
+    }
+    Ok(image)
+}
+
+/// An L-filter cut-off `lfilter` in µm as pixels along x and y of `image`; refused
+/// where the spacing is unknown or the cut-off is not positive.
+fn lfilter_px(lfilter: Option<f64>, image: &ImageFile) -> Result<Option<(f64, f64)>> {
+    let Some(l) = lfilter else {
+        return Ok(None);
+    };
+    if !(l.is_finite() && l > 0.0) {
+        return Err(Error::param(
+            "lfilter",
+            l,
+            "a positive cut-off wavelength in µm",
+        ));
+    }
+    match (image.spacing_um, image.spacing_y()) {
+        (Some(dx), Some(dy)) => Ok(Some((l / dx, l / dy))),
+        _ => Err(Error::param(
+            "lfilter",
+            l,
+            "a map whose spacing is known: this file records none, so give --spacing UM",
+        )),
+    }
+}
+
+/// What `surftile convert` does besides reading and writing.
+struct ConvertOptions {
+    unit: String,
+    level: Leveling,
+    lfilter: Option<f64>,
+    waviness: bool,
+    spacing: Option<f64>,
+    fill_missing: bool,
+    raw: ReadOptions,
+}
+
+/// `surftile convert`: reads any height file, removes form and filters as asked, and
+/// writes it in the output's format with its spacing and the chosen unit.
+fn convert_command(input: &Path, output: &Path, o: &ConvertOptions) -> Result<()> {
+    let out_format = surftile::io::Format::from_path(output)?;
+    let image = with_spacing(read_image(input, &o.raw)?, o.spacing)?;
+    let unit = if o.unit == "file" {
+        image.unit.unwrap_or(Unit::Um)
+    } else {
+        o.unit.parse::<Unit>().map_err(|_| {
+            Error::param(
+                "unit",
+                &o.unit,
+                "um, nm, mm or m, or file for the input's own",
+            )
+        })?
+    };
+    let r = &image.raster;
+    let missing = r.count_nan();
+    println!(
+        "read {}: {}×{} points{}, spacing {}, heights in {} (read as µm), {} missing point{} ({:.2}%)",
+        input.display(),
+        r.width,
+        r.height,
+        if r.channels > 1 {
+            format!(" × {} channels", r.channels)
+        } else {
+            String::new()
+        },
+        match (image.spacing_um, image.spacing_y()) {
+            (Some(x), Some(y)) if image.non_square() => format!("{x} × {y} µm"),
+            (Some(x), _) => format!("{x} µm"),
+            _ => "unknown".into(),
+        },
+        image.unit.map_or("an unstated unit", |u| u.symbol()),
+        missing,
+        if missing == 1 { "" } else { "s" },
+        100.0 * missing as f64 / r.data.len() as f64,
+    );
+    // Form and waviness are fitted over the defined points; missing points are filled
+    // last, where asked, so the fill does not weigh on either.
+    let mut raster = image.raster.clone();
+    o.level.apply(&mut raster);
+    if let Some(cutoff) = lfilter_px(o.lfilter, &image)? {
+        raster = if o.waviness {
+            surftile::prep::filter::waviness(&raster, cutoff)?
+        } else {
+            surftile::prep::filter::roughness(&raster, cutoff)?
+        };
+    }
+    if o.fill_missing && missing > 0 {
+        surftile::prep::missing::fill_missing(&mut raster, &input.display().to_string())?;
+    }
+    let k = (1.0 / unit.in_um()) as f32;
+    if unit != Unit::Um {
+        for v in &mut raster.data {
+            *v *= k;
+        }
+    }
+    let meta = WriteMeta {
+        spacing_um: image.spacing_um,
+        spacing_y_um: image.spacing_y_um.filter(|_| image.non_square()),
+        unit,
+    };
+    write_heights_with(output, &raster, &meta)?;
+    println!(
+        "wrote {} ({:?}, heights in {}{}{})",
+        output.display(),
+        out_format,
+        unit,
+        if o.level == Leveling::None {
+            String::new()
+        } else {
+            format!(", F-operator {}", o.level)
+        },
+        o.lfilter.map_or(String::new(), |l| format!(
+            ", {} of the Gaussian L-filter at {l} µm",
+            if o.waviness { "waviness" } else { "roughness" }
+        )),
     );
     Ok(())
 }
@@ -1386,32 +1578,88 @@ fn run(command: Command) -> Result<()> {
             b,
             cell,
             level,
+            lfilter,
+            spacing,
             fill_missing: fill,
             raw_shape,
             no_structure,
         } => {
             let options = raw_options(&raw_shape)?;
-            let (ra, rb) = (
-                read_image(&a, &options)?.raster,
-                read_image(&b, &options)?.raster,
-            );
+            let image_a = with_spacing(read_image(&a, &options)?, spacing)?;
+            let cutoff = lfilter_px(lfilter, &image_a)?;
+            let operators = Operators::new(level, lfilter);
+            let Some(b) = b else {
+                let figures = surftile::stats::describe_map(
+                    &image_a.raster,
+                    &a.display().to_string(),
+                    level,
+                    cutoff,
+                    fill,
+                )?;
+                let report = serde_json::json!({
+                    "file": a.display().to_string(),
+                    "grid": [image_a.raster.width, image_a.raster.height],
+                    "spacing_um": [image_a.spacing_um, image_a.spacing_y()],
+                    "unit_in_file": image_a.unit.map(|u| u.symbol()),
+                    "heights": "µm",
+                    "missing_points": image_a.raster.count_nan(),
+                    "operators": operators,
+                    "sal_um": image_a.spacing_um.filter(|_| !image_a.non_square()).map(|s| s * figures.sal),
+                    "iso25178": figures,
+                });
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report)
+                        .map_err(|e| Error::decode("stats", e.to_string()))?
+                );
+                return Ok(());
+            };
+            let rb = read_image(&b, &options)?.raster;
             let figures = surftile::stats::compare_maps(
-                (&ra, &a.display().to_string()),
+                (&image_a.raster, &a.display().to_string()),
                 (&rb, &b.display().to_string()),
                 &surftile::stats::CompareOptions {
                     cell,
                     leveling: level,
                     fill_missing: fill,
+                    lfilter_px: cutoff.map(|(x, _)| x),
                     structure: !no_structure,
                 },
             )?;
+            let mut report = serde_json::to_value(&figures)
+                .map_err(|e| Error::decode("stats", e.to_string()))?;
+            report["operators"] = serde_json::to_value(operators)
+                .map_err(|e| Error::decode("stats", e.to_string()))?;
             println!(
                 "{}",
-                serde_json::to_string_pretty(&figures)
+                serde_json::to_string_pretty(&report)
                     .map_err(|e| Error::decode("stats", e.to_string()))?
             );
             Ok(())
         }
+        Command::Convert {
+            input,
+            output,
+            unit,
+            level,
+            lfilter,
+            waviness,
+            spacing,
+            fill_missing,
+            raw_shape,
+        } => convert_command(
+            &input,
+            &output,
+            &ConvertOptions {
+                unit,
+                level,
+                lfilter,
+                waviness,
+                spacing,
+                fill_missing,
+                raw: raw_options(&raw_shape)?,
+            },
+        ),
         Command::Lattice {
             image,
             json,

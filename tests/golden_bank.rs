@@ -24,10 +24,7 @@ fn exemplar() -> ImageFile {
             (0.7 * x).sin() + 0.5 * (0.45 * y + 0.3 * x).cos() + ((i * 7919) % 13) as f32 * 0.05
         })
         .collect();
-    ImageFile {
-        raster: Raster::from_vec(w, h, 1, data).unwrap(),
-        spacing_um: Some(2.5),
-    }
+    ImageFile::new(Raster::from_vec(w, h, 1, data).unwrap(), Some(2.5))
 }
 
 #[test]

@@ -140,14 +140,7 @@ fn parity(bank: &Bank, seed: u32, g: &Gpu) -> (f64, bool) {
 
 fn bake(image: Raster, baker: Baker) -> Bank {
     baker
-        .bake(
-            &ImageFile {
-                raster: image,
-                spacing_um: None,
-            },
-            "synthetic",
-            &mut |_| {},
-        )
+        .bake(&ImageFile::new(image, None), "synthetic", &mut |_| {})
         .unwrap()
 }
 

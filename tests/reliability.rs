@@ -306,10 +306,8 @@ fn absurd_exemplar_values_are_refused_as_the_exemplars_fault() {
     let data: Vec<f32> = (0..64 * 64)
         .map(|i| if i % 2 == 0 { 3e38 } else { -3e38 })
         .collect();
-    let image = surftile::io::ImageFile {
-        raster: surftile::Raster::from_vec(64, 64, 1, data).unwrap(),
-        spacing_um: None,
-    };
+    let image =
+        surftile::io::ImageFile::new(surftile::Raster::from_vec(64, 64, 1, data).unwrap(), None);
     let e = Baker::builder()
         .build()
         .unwrap()

@@ -16,10 +16,7 @@ use surftile::stats::{height_stats, seam_score_at, seam_score_by};
 use surftile::stream::{Region, Surface, ToroidalSurface};
 
 fn image(r: Raster) -> ImageFile {
-    ImageFile {
-        raster: r,
-        spacing_um: None,
-    }
+    ImageFile::new(r, None)
 }
 
 fn di6() -> ImageFile {

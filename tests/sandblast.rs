@@ -15,10 +15,7 @@ fn data(rel: &str) -> std::path::PathBuf {
 }
 
 fn image(raster: Raster) -> ImageFile {
-    ImageFile {
-        raster,
-        spacing_um: None,
-    }
+    ImageFile::new(raster, None)
 }
 
 /// Repetition score ([`surftile::stats::Acf::repetition`]): the highest unbiased

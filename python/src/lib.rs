@@ -188,10 +188,7 @@ fn image_from(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<(ImageFile, String
         raster.height, raster.width, raster.channels
     );
     Ok((
-        ImageFile {
-            raster,
-            spacing_um: None,
-        },
+        ImageFile::new(raster, None),
         what,
     ))
 }
@@ -722,7 +719,7 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
         b = match k {
             "patch" => b.patch(count_param(k, &v)?),
             "bank_size" => b.bank_size(count_param(k, &v)?),
-            "level" => b.leveling(enum_param::<Leveling>(k, &v, "auto, plane, none")?),
+            "level" => b.leveling(enum_param::<Leveling>(k, &v, "auto, plane, poly:N, none")?),
             "downsample" => {
                 downsample = count_param(k, &v)?;
                 b
@@ -938,13 +935,14 @@ fn stats<'py>(
     let cell = cell
         .map(|c| usize::try_from(c).map_err(|_| bad("cell", c, "a size in pixels ≥ 0")))
         .transpose()?;
-    let leveling: Leveling = named("level", level, "auto, plane, none")?;
+    let leveling: Leveling = named("level", level, "auto, plane, poly:N, none")?;
     let (ia, wa) = image_from("a", a)?;
     let (ib, wb) = image_from("b", b)?;
     let options = surftile::stats::CompareOptions {
         cell,
         leveling,
         fill_missing,
+        lfilter_px: None,
         structure,
     };
     let figures = py

@@ -14,9 +14,17 @@
 //! Every write goes to a temporary file beside the target and is renamed into place
 //! only when complete, so a failed write never leaves a half-written output.
 
+mod al3d;
+mod bytes;
+mod di;
+mod metropro;
 mod npy;
+mod opd;
+mod plu;
 mod png;
 mod raw;
+mod sdf;
+mod sur;
 mod tiff;
 mod x3p;
 
@@ -32,10 +40,124 @@ pub use self::png::{MAX_PNG_SIDE, check_size as check_png_size, read_unit, write
 /// A decoded image and what its file said about it.
 #[derive(Clone, Debug)]
 pub struct ImageFile {
-    /// The samples.
+    /// The samples; heights in µm whatever unit the file stored them in.
     pub raster: Raster,
-    /// Pixel spacing in µm per pixel, when the file records it.
+    /// Pixel spacing along x (columns) in µm per pixel, when the file records it.
     pub spacing_um: Option<f64>,
+    /// Pixel spacing along y (rows) in µm, where the file gives one that differs from
+    /// x's (`None`: square pixels).
+    pub spacing_y_um: Option<f64>,
+    /// The unit the file stored its heights in, where it says (the raster holds µm).
+    pub unit: Option<Unit>,
+}
+
+impl ImageFile {
+    /// An image of square pixels `spacing_um` apart (where known) and no stated unit.
+    pub fn new(raster: Raster, spacing_um: Option<f64>) -> ImageFile {
+        ImageFile {
+            raster,
+            spacing_um,
+            spacing_y_um: None,
+            unit: None,
+        }
+    }
+
+    /// The y spacing in µm: [`ImageFile::spacing_y_um`], or x's for square pixels.
+    pub fn spacing_y(&self) -> Option<f64> {
+        self.spacing_y_um.or(self.spacing_um)
+    }
+
+    /// Whether the pixels are not square (y and x spacings differ by more than 1e-9
+    /// relative).
+    pub fn non_square(&self) -> bool {
+        match (self.spacing_um, self.spacing_y_um) {
+            (Some(x), Some(y)) => (x - y).abs() > 1e-9 * x.abs().max(y.abs()),
+            _ => false,
+        }
+    }
+}
+
+/// A unit of length for heights (and spacings) in files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unit {
+    /// Metres.
+    M,
+    /// Millimetres.
+    Mm,
+    /// Micrometres.
+    Um,
+    /// Nanometres.
+    Nm,
+}
+
+impl Unit {
+    /// Micrometres in one of this unit.
+    pub fn in_um(self) -> f64 {
+        match self {
+            Unit::M => 1e6,
+            Unit::Mm => 1e3,
+            Unit::Um => 1.0,
+            Unit::Nm => 1e-3,
+        }
+    }
+
+    /// The unit's symbol: `m`, `mm`, `µm` or `nm`.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Unit::M => "m",
+            Unit::Mm => "mm",
+            Unit::Um => "µm",
+            Unit::Nm => "nm",
+        }
+    }
+
+    /// The unit a symbol names: `m`, `mm`, `um`/`µm`/`μm` or `nm` (any case).
+    pub fn parse(text: &str) -> Option<Unit> {
+        match text.trim().to_lowercase().as_str() {
+            "m" => Some(Unit::M),
+            "mm" => Some(Unit::Mm),
+            "um" | "µm" | "μm" | "micron" | "microns" => Some(Unit::Um),
+            "nm" => Some(Unit::Nm),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for Unit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.symbol())
+    }
+}
+
+impl std::str::FromStr for Unit {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Unit, String> {
+        Unit::parse(text).ok_or_else(|| format!("'{text}' is not a unit; expected um, nm, mm or m"))
+    }
+}
+
+/// What a height file records beside its samples when written: spacings and the unit
+/// the samples are in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WriteMeta {
+    /// Spacing along x in µm.
+    pub spacing_um: Option<f64>,
+    /// Spacing along y in µm, where it differs from x's.
+    pub spacing_y_um: Option<f64>,
+    /// The unit the raster's heights are in (X3P converts them to metres; PNG and TIFF
+    /// record it).
+    pub unit: Unit,
+}
+
+impl WriteMeta {
+    /// Square pixels `spacing_um` apart, heights in µm.
+    pub fn um(spacing_um: Option<f64>) -> WriteMeta {
+        WriteMeta {
+            spacing_um,
+            spacing_y_um: None,
+            unit: Unit::Um,
+        }
+    }
 }
 
 /// Most pixels any reader decodes (2²⁵, e.g. 5792²): at 4 channels of f32 that is 512 MiB,
@@ -78,12 +200,54 @@ pub struct HeightMeta {
     /// Height mapped to the largest grey level (PNG only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub height_max: Option<f64>,
-    /// Pixel spacing in µm per pixel.
+    /// Pixel spacing in µm per pixel (along x).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spacing_um: Option<f64>,
+    /// Pixel spacing along y in µm, where it differs from x's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing_y_um: Option<f64>,
+    /// The unit of the heights (`m`, `mm`, `µm`, `nm`); µm where absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_unit: Option<String>,
 }
 
-/// Image formats, chosen by file extension.
+impl HeightMeta {
+    /// The metadata a writer stores for `meta`.
+    fn of(meta: &WriteMeta) -> HeightMeta {
+        HeightMeta {
+            spacing_um: meta.spacing_um,
+            spacing_y_um: meta.spacing_y_um,
+            height_unit: (meta.unit != Unit::Um).then(|| meta.unit.symbol().to_string()),
+            ..HeightMeta::default()
+        }
+    }
+
+    /// Applies what a PNG or TIFF file's metadata says to its decoded image: the
+    /// spacings, and heights back to µm from a recorded unit (`what` names the file).
+    fn apply(&self, image: &mut ImageFile, what: &str) -> Result<()> {
+        image.spacing_um = self.spacing_um;
+        image.spacing_y_um = self.spacing_y_um;
+        if let Some(symbol) = &self.height_unit {
+            let unit = Unit::parse(symbol).ok_or_else(|| {
+                Error::decode(
+                    what,
+                    format!(
+                        "its metadata names the height unit '{symbol}'; expected m, mm, µm or nm"
+                    ),
+                )
+            })?;
+            let k = unit.in_um() as f32;
+            for v in &mut image.raster.data {
+                *v *= k;
+            }
+            image.unit = Some(unit);
+        }
+        Ok(())
+    }
+}
+
+/// Image formats, chosen by content where the file's first bytes name one, else by
+/// extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     /// `.png`
@@ -96,6 +260,20 @@ pub enum Format {
     Raw,
     /// `.x3p`: ISO 25178-72
     X3p,
+    /// `.al3d`: Alicona AL3D
+    Al3d,
+    /// `.plu`: Sensofar PLU
+    Plu,
+    /// `.sur`: Digital Surf SUR
+    Sur,
+    /// `.opd`: Wyko/Veeco OPD
+    Opd,
+    /// `.di` or a Nanoscope number extension (`.001`…): Bruker/Veeco Nanoscope
+    Di,
+    /// `.dat`: Zygo MetroPro
+    MetroPro,
+    /// `.sdf`: ISO 25178-71 surface data file (ASCII)
+    Sdf,
 }
 
 impl Format {
@@ -112,18 +290,86 @@ impl Format {
             "npy" => Ok(Format::Npy),
             "raw" | "f32" | "bin" => Ok(Format::Raw),
             "x3p" => Ok(Format::X3p),
+            "al3d" => Ok(Format::Al3d),
+            "plu" | "apx" => Ok(Format::Plu),
+            "sur" => Ok(Format::Sur),
+            "opd" => Ok(Format::Opd),
+            "di" | "spm" => Ok(Format::Di),
+            e if e.len() == 3 && e.bytes().all(|b| b.is_ascii_digit()) => Ok(Format::Di),
+            "dat" => Ok(Format::MetroPro),
+            "sdf" => Ok(Format::Sdf),
             _ => Err(Error::Unsupported(format!(
-                "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy, .x3p or .raw/.f32",
+                "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy, .x3p, \
+                 .raw/.f32, or an instrument file (.al3d, .plu, .sur, .opd, .di, .dat, .sdf)",
                 path.display()
             ))),
         }
     }
+
+    /// The format a file's first bytes name, where they name one (PNG, TIFF, NumPy,
+    /// zip = X3P, and the instrument formats' signatures).
+    pub fn sniff(bytes: &[u8]) -> Option<Format> {
+        let starts = |magic: &[u8]| bytes.starts_with(magic);
+        if starts(b"\x89PNG\r\n\x1a\n") {
+            Some(Format::Png)
+        } else if starts(b"II*\0") || starts(b"MM\0*") || starts(b"II+\0") || starts(b"MM\0+") {
+            Some(Format::Tiff)
+        } else if starts(b"\x93NUMPY") {
+            Some(Format::Npy)
+        } else if starts(b"PK\x03\x04") {
+            Some(Format::X3p)
+        } else if starts(b"AliconaImaging") {
+            Some(Format::Al3d)
+        } else if starts(b"DIGITAL SURF") || starts(b"DSCOMPRESSED") {
+            Some(Format::Sur)
+        } else if starts(b"\\*File list")
+            || starts(b"\\*EC File list")
+            || starts(b"?*File list")
+            || starts(b"\\*Force file list")
+        {
+            Some(Format::Di)
+        } else if starts(b"aISO-1.0") || starts(b"bISO-1.0") {
+            Some(Format::Sdf)
+        } else if metropro::sniff(bytes) {
+            Some(Format::MetroPro)
+        } else if opd::sniff(bytes) {
+            Some(Format::Opd)
+        } else if plu::sniff(bytes) {
+            Some(Format::Plu)
+        } else {
+            None
+        }
+    }
+
+    /// Whether the format can hold missing points (NaN) when written.
+    fn holds_missing(self) -> bool {
+        matches!(self, Format::Npy | Format::Tiff | Format::X3p | Format::Raw)
+    }
 }
 
-/// Reads an image file, choosing the decoder by extension.
+/// Largest file any reader takes (4 GiB): a path naming something larger is refused
+/// before it is read.
+pub const MAX_FILE_BYTES: u64 = 1 << 32;
+
+/// Reads an image file, choosing the decoder by content where the first bytes name a
+/// format, else by extension.
 pub fn read_image(path: &Path, options: &ReadOptions) -> Result<ImageFile> {
-    let format = Format::from_path(path)?;
+    let by_name = Format::from_path(path);
+    let len = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    if len > MAX_FILE_BYTES {
+        return Err(Error::Limits(format!(
+            "{}: {len} bytes; readers take files of at most {MAX_FILE_BYTES} bytes (4 GiB)",
+            path.display()
+        )));
+    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let format = match (Format::sniff(&bytes), by_name) {
+        (Some(f), _) => f,
+        (None, Ok(f)) => f,
+        (None, Err(e)) => return Err(e),
+    };
     let what = path.display().to_string();
     read_image_bytes(&bytes, format, &what, options)
 }
@@ -143,6 +389,13 @@ pub fn read_image_bytes(
         Format::Tiff => tiff::read(bytes, what)?,
         Format::Npy => npy::read(bytes, what)?,
         Format::X3p => x3p::read(bytes, what)?,
+        Format::Al3d => al3d::read(bytes, what)?,
+        Format::Plu => plu::read(bytes, what)?,
+        Format::Sur => sur::read(bytes, what)?,
+        Format::Opd => opd::read(bytes, what)?,
+        Format::Di => di::read(bytes, what)?,
+        Format::MetroPro => metropro::read(bytes, what)?,
+        Format::Sdf => sdf::read(bytes, what)?,
         Format::Raw => {
             let shape = options.raw_shape.ok_or_else(|| {
                 Error::param("raw-shape", "none", "WxH or WxHxC for a raw f32 file")
@@ -156,11 +409,26 @@ pub fn read_image_bytes(
             "the image has no pixels (0 width or height)",
         ));
     }
+    let mut image = image;
+    if !image.non_square() {
+        image.spacing_y_um = None;
+    }
+    for (name, s) in [("x", image.spacing_um), ("y", image.spacing_y_um)] {
+        if let Some(s) = s
+            && !(s.is_finite() && s > 0.0)
+        {
+            return Err(Error::decode(
+                what,
+                format!("its {name} spacing is {s} µm; expected a positive, finite length"),
+            ));
+        }
+    }
     Ok(image)
 }
 
 /// Writes heights (or colours) to `path` in the format its extension names: 16-bit PNG,
-/// 32-bit float TIFF or float32 `.npy`. Non-finite samples are refused.
+/// 32-bit float TIFF, float32 `.npy` or X3P, with square pixels `spacing_um` apart and
+/// heights in µm. Non-finite samples are refused.
 pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> Result<()> {
     if raster.data.iter().any(|v| !v.is_finite()) {
         return Err(Error::param(
@@ -169,15 +437,46 @@ pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> R
             "finite heights (NaN or infinite values cannot be written)",
         ));
     }
+    write_heights_with(path, raster, &WriteMeta::um(spacing_um))
+}
+
+/// Writes heights to `path` in the format its extension names, with `meta`'s spacings
+/// and unit: 16-bit PNG, 32-bit float TIFF, float32 `.npy`, raw f32 or X3P. Missing
+/// points (NaN) are kept where the format holds them (TIFF, `.npy`, raw, X3P) and refused
+/// for PNG; infinite samples are always refused.
+pub fn write_heights_with(path: &Path, raster: &Raster, meta: &WriteMeta) -> Result<()> {
     let format = Format::from_path(path)?;
+    if !matches!(
+        format,
+        Format::Png | Format::Tiff | Format::Npy | Format::Raw | Format::X3p
+    ) {
+        return Err(Error::Unsupported(format!(
+            "{}: surftile reads {format:?} files but does not write them; write .x3p, .npy, .tif or .png",
+            path.display()
+        )));
+    }
+    if raster.data.iter().any(|v| v.is_infinite()) {
+        return Err(Error::param(
+            "output samples",
+            "infinite",
+            "finite heights (infinite values cannot be written)",
+        ));
+    }
+    if !format.holds_missing() && raster.data.iter().any(|v| v.is_nan()) {
+        return Err(Error::param(
+            "output samples",
+            format!("{} missing points (NaN)", raster.count_nan()),
+            "a format that holds missing points (.x3p, .npy, .tif), or --fill-missing",
+        ));
+    }
     write_atomically(path, |w| match format {
-        Format::Png => png::write16(w, raster, spacing_um),
-        Format::Tiff => tiff::write(w, raster, spacing_um),
+        Format::Png => png::write16(w, raster, meta),
+        Format::Tiff => tiff::write(w, raster, meta),
         Format::Npy => npy::write(w, raster),
         Format::X3p => {
             // The generating command, as the X3P record's comment.
             let command: Vec<String> = std::env::args().collect();
-            x3p::write(w, raster, spacing_um, &command.join(" "))
+            x3p::write(w, raster, meta, &command.join(" "))
         }
         Format::Raw => {
             for v in &raster.data {
@@ -185,6 +484,7 @@ pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> R
             }
             Ok(())
         }
+        _ => Err(Error::Unsupported(format!("writing {format:?} files"))),
     })
 }
 

@@ -200,11 +200,11 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         data
     };
     let (data, c) = super::drop_alpha(data, c);
-    Ok(ImageFile {
-        raster: Raster::from_vec(w, h, c, data)
+    Ok(ImageFile::new(
+        Raster::from_vec(w, h, c, data)
             .map_err(|_| bad("data length does not match the shape".into()))?,
-        spacing_um: None,
-    })
+        None,
+    ))
 }
 
 pub(super) fn write(w: &mut impl Write, raster: &Raster) -> Result<()> {

@@ -86,29 +86,28 @@ fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
         data.extend_from_slice(&levels[start..start + row]);
     }
     let (mut data, channels) = drop_alpha(data, channels);
-    let mut spacing_um = None;
     if unit {
         for v in &mut data {
             *v /= max_level as f32;
         }
-    } else if let Some(meta) = meta {
-        if let (Some(lo), Some(hi)) = (meta.height_min, meta.height_max) {
-            let scale = ((hi - lo) / max_level) as f32;
-            for v in &mut data {
-                *v = lo as f32 + *v * scale;
-            }
+    } else if let Some(meta) = &meta
+        && let (Some(lo), Some(hi)) = (meta.height_min, meta.height_max)
+    {
+        let scale = ((hi - lo) / max_level) as f32;
+        for v in &mut data {
+            *v = lo as f32 + *v * scale;
         }
-        spacing_um = meta.spacing_um;
     }
-    Ok(ImageFile {
-        raster: Raster::from_vec(w, h, channels, data)?,
-        spacing_um,
-    })
+    let mut image = ImageFile::new(Raster::from_vec(w, h, channels, data)?, None);
+    if let (false, Some(meta)) = (unit, &meta) {
+        meta.apply(&mut image, what)?;
+    }
+    Ok(image)
 }
 
 /// 16-bit PNG of `raster` (1 or 3 channels), min–max scaled over all samples; the range
 /// and spacing go into a `surftile` tEXt chunk as JSON.
-pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f64>) -> Result<()> {
+pub(super) fn write16(w: &mut impl Write, raster: &Raster, meta: &super::WriteMeta) -> Result<()> {
     let color = match raster.channels {
         1 => ColorType::Grayscale,
         3 => ColorType::Rgb,
@@ -122,7 +121,7 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, spacing_um: Option<f6
     let meta = HeightMeta {
         height_min: Some(lo as f64),
         height_max: Some(hi as f64),
-        spacing_um,
+        ..HeightMeta::of(meta)
     };
     let row_len = raster.width * raster.channels;
     encode(

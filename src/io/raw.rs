@@ -23,8 +23,5 @@ pub(super) fn read(
         .chunks_exact(4)
         .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
         .collect();
-    Ok(ImageFile {
-        raster: Raster::from_vec(w, h, c, data)?,
-        spacing_um: None,
-    })
+    Ok(ImageFile::new(Raster::from_vec(w, h, c, data)?, None))
 }

@@ -28,11 +28,10 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         }
     };
     super::check_shape(what, w as usize, h as usize, channels)?;
-    let spacing_um = dec
+    let meta = dec
         .get_tag_ascii_string(Tag::ImageDescription)
         .ok()
-        .and_then(|s| serde_json::from_str::<HeightMeta>(&s).ok())
-        .and_then(|m| m.spacing_um);
+        .and_then(|s| serde_json::from_str::<HeightMeta>(&s).ok());
     let data: Vec<f32> = match dec.read_image().map_err(bad)? {
         DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
@@ -58,27 +57,25 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let mut data = data;
     data.truncate(w * h * channels);
     let (data, channels) = drop_alpha(data, channels);
-    Ok(ImageFile {
-        raster: Raster::from_vec(w, h, channels, data)?,
-        spacing_um,
-    })
+    let mut image = ImageFile::new(Raster::from_vec(w, h, channels, data)?, None);
+    if let Some(meta) = meta {
+        meta.apply(&mut image, what)?;
+    }
+    Ok(image)
 }
 
 pub(super) fn write(
     w: &mut (impl Write + Seek),
     raster: &Raster,
-    spacing_um: Option<f64>,
+    meta: &super::WriteMeta,
 ) -> Result<()> {
     let err = |e: tiff::TiffError| Error::decode("TIFF output", e.to_string());
     let (wd, ht) = (
         u32::try_from(raster.width).map_err(|_| Error::Limits("TIFF width".into()))?,
         u32::try_from(raster.height).map_err(|_| Error::Limits("TIFF height".into()))?,
     );
-    let meta = serde_json::to_string(&HeightMeta {
-        spacing_um,
-        ..Default::default()
-    })
-    .map_err(|e| Error::decode("TIFF metadata", e.to_string()))?;
+    let meta = serde_json::to_string(&HeightMeta::of(meta))
+        .map_err(|e| Error::decode("TIFF metadata", e.to_string()))?;
     let mut enc = TiffEncoder::new(w).map_err(err)?;
     match raster.channels {
         1 => {

@@ -99,6 +99,42 @@ fn read_entry<R: Read + Seek>(
     Ok(Some(out))
 }
 
+/// The length (read up to `limit` bytes) and MD5 of a zip entry, streamed through a
+/// small buffer: a file's sizes and checksum are checked before its point data is held
+/// in memory, so a damaged file costs no more than its own size.
+fn digest_entry<R: Read + Seek>(
+    archive: &mut zip::ZipArchive<R>,
+    name: &str,
+    limit: u64,
+    what: &str,
+) -> Result<Option<(u64, String)>> {
+    let entry = match archive.by_name(name) {
+        Ok(e) => e,
+        Err(zip::result::ZipError::FileNotFound) => return Ok(None),
+        Err(e) => return Err(bad(what, format!("{name}: {e}"))),
+    };
+    let mut hasher = Md5::new();
+    let mut reader = entry.take(limit);
+    let mut buf = vec![0u8; 1 << 14];
+    let mut len = 0u64;
+    loop {
+        let n = reader
+            .read(&mut buf)
+            .map_err(|e| bad(what, format!("{name}: {e}")))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buf[..n]);
+        len += n as u64;
+    }
+    let hex = hasher
+        .finalize()
+        .iter()
+        .map(|b| format!("{b:02X}"))
+        .collect();
+    Ok(Some((len, hex)))
+}
+
 fn md5_hex(bytes: &[u8]) -> String {
     Md5::digest(bytes)
         .iter()
@@ -147,7 +183,7 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             None => Err(bad(what, format!("main.xml has no {axis} increment"))),
         }
     };
-    let (dx, _dy) = (increment("CX")?, increment("CY")?);
+    let (dx, dy) = (increment("CX")?, increment("CY")?);
     let z_type = find(&doc, &["Record1", "Axes", "CZ", "DataType"]).unwrap_or("");
     let size = match z_type {
         "I" => 2,
@@ -177,33 +213,34 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let link = find(&doc, &["Record3", "DataLink", "PointDataLink"])
         .filter(|l| !l.is_empty())
         .unwrap_or("bindata/data.bin");
-    let data =
-        read_entry(&mut archive, link, expected + 1, bytes.len(), what)?.ok_or_else(|| {
+    let (found_len, found_md5) =
+        digest_entry(&mut archive, link, expected + 1, what)?.ok_or_else(|| {
             bad(
                 what,
                 format!("the X3P archive has no {link} (main.xml's point data)"),
             )
         })?;
-    if data.len() as u64 != expected {
+    if found_len != expected {
         return Err(bad(
             what,
             format!(
-                "{link} holds {} bytes; main.xml's {sx} × {sy} points of type {z_type} need {expected}",
-                data.len()
+                "{link} holds {found_len} bytes; main.xml's {sx} × {sy} points of type {z_type} need {expected}"
             ),
         ));
     }
     if let Some(sum) =
         find(&doc, &["Record3", "DataLink", "MD5ChecksumPointData"]).filter(|s| !s.is_empty())
+        && !found_md5.eq_ignore_ascii_case(sum)
     {
-        let found = md5_hex(&data);
-        if !found.eq_ignore_ascii_case(sum) {
-            return Err(bad(
-                what,
-                format!("{link}'s MD5 is {found}; main.xml records {sum} (a damaged file)"),
-            ));
-        }
+        return Err(bad(
+            what,
+            format!("{link}'s MD5 is {found_md5}; main.xml records {sum} (a damaged file)"),
+        ));
     }
+    // Sizes and checksum are right: now the data is read for good.
+    let data = read_entry(&mut archive, link, expected, expected as usize, what)?
+        .filter(|d| d.len() as u64 == expected)
+        .ok_or_else(|| bad(what, format!("{link} changed while it was read")))?;
     let valid = match find(&doc, &["Record3", "DataLink", "ValidPointsLink"])
         .filter(|l| !l.is_empty())
     {
@@ -258,10 +295,12 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             *h = f32::NAN;
         }
     }
-    Ok(ImageFile {
-        raster: Raster::from_vec(sx, sy, 1, heights)?,
-        spacing_um: Some(dx / UM),
-    })
+    let mut image = ImageFile::new(Raster::from_vec(sx, sy, 1, heights)?, Some(dx / UM));
+    if (dy - dx).abs() > 1e-9 * dx.abs().max(dy.abs()) {
+        image.spacing_y_um = Some(dy / UM);
+    }
+    image.unit = Some(super::Unit::M);
+    Ok(image)
 }
 
 /// Escapes text for an XML element.
@@ -278,7 +317,7 @@ fn escape(text: &str) -> String {
 }
 
 /// The `main.xml` of a `w × h` surface of D heights.
-fn main_xml(w: usize, h: usize, spacing_m: f64, data_md5: &str, comment: &str) -> String {
+fn main_xml(w: usize, h: usize, (dx_m, dy_m): (f64, f64), data_md5: &str, comment: &str) -> String {
     let version = env!("CARGO_PKG_VERSION");
     let comment = escape(comment);
     format!(
@@ -291,13 +330,13 @@ fn main_xml(w: usize, h: usize, spacing_m: f64, data_md5: &str, comment: &str) -
       <CX>
         <AxisType>I</AxisType>
         <DataType>D</DataType>
-        <Increment>{spacing_m:e}</Increment>
+        <Increment>{dx_m:e}</Increment>
         <Offset>0</Offset>
       </CX>
       <CY>
         <AxisType>I</AxisType>
         <DataType>D</DataType>
-        <Increment>{spacing_m:e}</Increment>
+        <Increment>{dy_m:e}</Increment>
         <Offset>0</Offset>
       </CY>
       <CZ>
@@ -340,13 +379,14 @@ fn main_xml(w: usize, h: usize, spacing_m: f64, data_md5: &str, comment: &str) -
     )
 }
 
-/// Writes heights in µm (one channel) as X3P: D values in metres, `spacing_um` (µm per
-/// pixel; 1 where unknown, and the comment says so) as both increments, and `comment`
-/// (the generating command) in `Record2/Comment`.
+/// Writes heights in `meta.unit` (one channel) as X3P: D values in metres (NaN for
+/// missing points), the spacings in metres as the X and Y increments (1 µm where
+/// unknown, and the comment says so), and `comment` (the generating command) in
+/// `Record2/Comment`.
 pub(super) fn write<W: Write + Seek>(
     w: W,
     raster: &Raster,
-    spacing_um: Option<f64>,
+    meta: &super::WriteMeta,
     comment: &str,
 ) -> Result<()> {
     if raster.channels != 1 {
@@ -358,19 +398,21 @@ pub(super) fn write<W: Write + Seek>(
     }
     let err = |e: zip::result::ZipError| Error::decode("X3P output", e.to_string());
     let io = |e: std::io::Error| Error::decode("X3P output", e.to_string());
+    let metres = meta.unit.in_um() * UM;
     let mut data = Vec::with_capacity(raster.data.len() * 8);
     for &v in &raster.data {
-        data.extend_from_slice(&(v as f64 * UM).to_le_bytes());
+        data.extend_from_slice(&(v as f64 * metres).to_le_bytes());
     }
-    let comment = match spacing_um {
+    let comment = match meta.spacing_um {
         Some(_) => comment.to_string(),
         None => format!("{comment} (pixel spacing unknown: written as 1 µm)"),
     };
-    let spacing_m = spacing_um.unwrap_or(1.0) * UM;
+    let dx = meta.spacing_um.unwrap_or(1.0) * UM;
+    let dy = meta.spacing_y_um.map_or(dx, |s| s * UM);
     let xml = main_xml(
         raster.width,
         raster.height,
-        spacing_m,
+        (dx, dy),
         &md5_hex(&data),
         &comment,
     );

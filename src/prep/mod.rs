@@ -2,6 +2,7 @@
 //! adaptation): missing points refused or filled smoothly, infinite values refused, a
 //! least-squares plane removed, integer down-sampling.
 
+pub mod filter;
 pub mod level;
 pub mod missing;
 pub mod resample;
@@ -16,16 +17,17 @@ use resample::{DownsampleFilter, downsample};
 /// and far enough below f32's 3.4·10³⁸ that the analysis' sums and tables stay finite.
 pub const MAX_VALUE: f32 = 1e30;
 
-/// Plane levelling before analysis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
-// The names the CLI takes (clap's kebab-case), for the Python package's keywords.
-#[serde(rename_all = "kebab-case")]
+/// Form removal before analysis: the ISO 25178-2 F-operator as a least-squares
+/// polynomial. Written `auto`, `plane`, `poly:N` (`poly:1` is `plane`) or `none`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Leveling {
     /// Subtract the least-squares plane from height maps (1 channel), leave colour as is.
     Auto,
-    /// Always subtract the least-squares plane.
+    /// Always subtract the least-squares plane (`poly:1`).
     Plane,
+    /// Always subtract the least-squares polynomial of this total degree (0: the mean;
+    /// 2 or more; 1 is [`Leveling::Plane`]), at most [`level::MAX_POLY_DEGREE`].
+    Poly(u8),
     /// Keep the data as is.
     None,
 }
@@ -34,10 +36,79 @@ impl Leveling {
     /// Whether a map of `channels` channels is levelled.
     pub fn levels(self, channels: usize) -> bool {
         match self {
-            Leveling::Plane => true,
+            Leveling::Plane | Leveling::Poly(_) => true,
             Leveling::None => false,
             Leveling::Auto => channels == 1,
         }
+    }
+
+    /// The polynomial degree removed from a map of `channels` channels (`None`: nothing).
+    pub fn degree(self, channels: usize) -> Option<u8> {
+        match self {
+            Leveling::Poly(n) => Some(n),
+            _ if self.levels(channels) => Some(1),
+            _ => None,
+        }
+    }
+
+    /// Removes the form from `raster` as this operator says.
+    pub fn apply(self, raster: &mut Raster) {
+        match self.degree(raster.channels) {
+            Some(1) => level_plane(raster),
+            Some(n) => level::level_poly(raster, n),
+            None => {}
+        }
+    }
+}
+
+impl std::fmt::Display for Leveling {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Leveling::Auto => f.write_str("auto"),
+            Leveling::Plane => f.write_str("plane"),
+            Leveling::Poly(n) => write!(f, "poly:{n}"),
+            Leveling::None => f.write_str("none"),
+        }
+    }
+}
+
+impl std::str::FromStr for Leveling {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Leveling, String> {
+        let bad = || {
+            format!(
+                "'{text}' is not a form removal; expected auto, plane, none or poly:N with N from 0 to {}",
+                level::MAX_POLY_DEGREE
+            )
+        };
+        match text.trim() {
+            "auto" => Ok(Leveling::Auto),
+            "plane" | "poly:1" => Ok(Leveling::Plane),
+            "none" => Ok(Leveling::None),
+            t => {
+                let n: u8 = t
+                    .strip_prefix("poly:")
+                    .and_then(|n| n.parse().ok())
+                    .ok_or_else(bad)?;
+                if n > level::MAX_POLY_DEGREE {
+                    return Err(bad());
+                }
+                Ok(Leveling::Poly(n))
+            }
+        }
+    }
+}
+
+impl serde::Serialize for Leveling {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Leveling {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Leveling, D::Error> {
+        let text = String::deserialize(d)?;
+        text.parse().map_err(serde::de::Error::custom)
     }
 }
 
@@ -92,9 +163,7 @@ impl Prep {
                 ),
             ));
         }
-        if self.leveling.levels(r.channels) {
-            level_plane(&mut r);
-        }
+        self.leveling.apply(&mut r);
         if self.downsample == 1 {
             Ok(r)
         } else {

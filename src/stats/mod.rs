@@ -82,11 +82,14 @@ pub struct CompareOptions {
     /// Cell size in pixels of B's seam score (and the phase seams of the structure
     /// figures); `None`: their defaults.
     pub cell: Option<usize>,
-    /// Plane levelling: height maps are levelled unless `None`; the height figures of a
-    /// colour map level its channel 0.
+    /// Form removal (the F-operator) of the height figures' channel 0: `auto` and
+    /// `plane` subtract the least-squares plane, `poly:N` a polynomial, `none` nothing.
+    /// The patch figures see height maps so, and colour as it is.
     pub leveling: crate::prep::Leveling,
     /// Fill missing points smoothly instead of refusing a map with any.
     pub fill_missing: bool,
+    /// Gaussian L-filter cut-off in pixels of the height figures (`None`: no filter).
+    pub lfilter_px: Option<f64>,
     /// Compute the structure (patch) figures too.
     pub structure: bool,
 }
@@ -109,24 +112,31 @@ pub fn compare_maps(
     let levelled = options.leveling != Leveling::None;
     let prep = Prep {
         fill_missing: options.fill_missing,
-        leveling: if levelled {
-            Leveling::Auto
-        } else {
-            Leveling::None
-        },
+        leveling: Leveling::None,
         ..Prep::default()
     };
-    let (full_a, full_b) = (prep.apply(a, what_a)?, prep.apply(b, what_b)?);
-    // The height figures read channel 0, levelled as asked whatever the channel count;
-    // the patch figures read colour as it is.
-    let height_channel = |full: &Raster| {
+    let (raw_a, raw_b) = (prep.apply(a, what_a)?, prep.apply(b, what_b)?);
+    // The height figures read channel 0 with its form removed as asked (any polynomial
+    // degree; `auto` is the plane) and the L-filter where asked, whatever the channel
+    // count; the patch figures read height maps so, and colour as it is.
+    let height_channel = |full: &Raster| -> crate::Result<Raster> {
         let mut r = full.channel(0);
-        if levelled && full.channels > 1 {
-            crate::prep::level::level_plane(&mut r);
+        let form = match options.leveling {
+            Leveling::Auto => Leveling::Plane,
+            other => other,
+        };
+        form.apply(&mut r);
+        match options.lfilter_px {
+            Some(l) => crate::prep::filter::roughness(&r, (l, l)),
+            None => Ok(r),
         }
-        r
     };
-    let (ra, rb) = (height_channel(&full_a), height_channel(&full_b));
+    let (ra, rb) = (height_channel(&raw_a)?, height_channel(&raw_b)?);
+    let (full_a, full_b) = if raw_a.channels == 1 && raw_b.channels == 1 {
+        (ra.clone(), rb.clone())
+    } else {
+        (raw_a, raw_b)
+    };
     for (what, r) in [(what_a, &ra), (what_b, &rb)] {
         if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
             return Err(Error::TooSmall {
@@ -163,6 +173,51 @@ pub fn compare_maps(
         figures.structure = Some(structure::structure(&full_a, &full_b, options.cell));
     }
     Ok(figures)
+}
+
+/// The ISO 25178 figures ([`HeightStats`]) of one height map on its scale-limited
+/// surface: missing points refused or filled (`fill_missing`), form removed by `form`
+/// (the F-operator; `auto` is the plane), then, where `lfilter_px` gives cut-offs in
+/// pixels along x and y, the roughness of the Gaussian L-filter. Refuses maps under
+/// [`MIN_STATS_SIDE`] and maps of more than one channel.
+pub fn describe_map(
+    raster: &Raster,
+    what: &str,
+    form: crate::prep::Leveling,
+    lfilter_px: Option<(f64, f64)>,
+    fill_missing: bool,
+) -> crate::Result<HeightStats> {
+    use crate::error::Error;
+    use crate::prep::{Leveling, Prep};
+    if raster.channels != 1 {
+        return Err(Error::param(
+            "map",
+            format!("{} channels", raster.channels),
+            "a height map (one channel) for its ISO 25178 parameters",
+        ));
+    }
+    if raster.width < MIN_STATS_SIDE || raster.height < MIN_STATS_SIDE {
+        return Err(Error::TooSmall {
+            what: what.to_string(),
+            message: format!(
+                "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE}",
+                raster.width, raster.height
+            ),
+        });
+    }
+    let prep = Prep {
+        fill_missing,
+        leveling: match form {
+            Leveling::Auto => Leveling::Plane,
+            other => other,
+        },
+        ..Prep::default()
+    };
+    let mut r = prep.apply(raster, what)?;
+    if let Some(l) = lfilter_px {
+        r = crate::prep::filter::roughness(&r, l)?;
+    }
+    Ok(height_stats(&r))
 }
 
 /// Compares exemplar `a` with synthesis `b`.
