@@ -1371,3 +1371,107 @@ fn x3p_outputs_read_back_as_exemplars() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(dir.path().join("h.bank").exists());
 }
+
+/// `surftile convert` (issue 36): an instrument file to X3P and npy keeps heights,
+/// spacing and missing points, prints what it read, converts units on request, and
+/// removes form; a PNG of a map with missing points is refused unless they are filled.
+#[test]
+fn convert_keeps_heights_spacing_and_missing_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let sur = common::repo("tests/data/instruments/sur-2-crop.sur");
+    let sur = sur.to_str().unwrap();
+    let r = surftile(dir.path(), &["convert", sur, "a.x3p"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stdout.contains("128×120 points")
+            && r.stdout.contains("spacing 3.4840002190321684 µm")
+            && r.stdout.contains("heights in mm")
+            && r.stdout.contains("39 missing points"),
+        "{}",
+        r.stdout
+    );
+    let r = surftile(dir.path(), &["convert", "a.x3p", "b.npy", "--unit", "nm"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let read = |p: &std::path::Path| surftile::io::read_image(p, &Default::default()).unwrap();
+    let want = read(&common::repo("tests/data/instruments/sur-2-crop.npy"));
+    let x3p = read(&dir.path().join("a.x3p"));
+    let nm = read(&dir.path().join("b.npy"));
+    assert!((x3p.spacing_um.unwrap() / 3.4840002190321684 - 1.0).abs() < 1e-12);
+    for ((a, b), c) in want
+        .raster
+        .data
+        .iter()
+        .zip(&x3p.raster.data)
+        .zip(&nm.raster.data)
+    {
+        assert_eq!(a.is_nan(), b.is_nan());
+        assert_eq!(a.is_nan(), c.is_nan());
+        if a.is_finite() {
+            assert!((a - b).abs() <= 1e-5 * a.abs(), "{a} vs {b}");
+            assert!((a * 1e3 - c).abs() <= 1e-4 * c.abs(), "{a} µm vs {c} nm");
+        }
+    }
+    // PNG cannot hold missing points: refused in one line, then filled on request.
+    let r = surftile(dir.path(), &["convert", sur, "c.png"]);
+    assert_ne!(r.code, 0);
+    assert!(
+        r.stderr.contains("missing points") && r.stderr.trim().lines().count() == 1,
+        "{}",
+        r.stderr
+    );
+    assert!(!dir.path().join("c.png").exists());
+    let r = surftile(
+        dir.path(),
+        &[
+            "convert",
+            sur,
+            "c.png",
+            "--fill-missing",
+            "--level",
+            "poly:2",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    // A bad unit and a bad form removal are named.
+    let r = surftile(dir.path(), &["convert", sur, "d.npy", "--unit", "furlong"]);
+    assert!(r.code != 0 && r.stderr.contains("unit"), "{}", r.stderr);
+    let r = surftile(dir.path(), &["convert", sur, "d.npy", "--level", "poly:99"]);
+    assert!(r.code != 0 && r.stderr.contains("poly:N"), "{}", r.stderr);
+}
+
+/// `surftile stats A` alone (issue 36): the ISO 25178 parameters of a map on its
+/// scale-limited surface, naming the operators; the L-filter needs a spacing.
+#[test]
+fn stats_of_one_map_names_its_operators() {
+    let dir = tempfile::tempdir().unwrap();
+    let plu = common::repo("tests/data/instruments/plu-1-crop.plu");
+    let plu = plu.to_str().unwrap();
+    let r = surftile(
+        dir.path(),
+        &["stats", plu, "--level", "poly:2", "--lfilter", "50"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["operators"]["f"], "poly:2");
+    assert!(v["operators"]["l"].as_str().unwrap().contains("50 µm"));
+    assert_eq!(v["grid"], serde_json::json!([128, 120]));
+    let sq = v["iso25178"]["sq"].as_f64().unwrap();
+    // Without the L-filter the same map keeps its waviness: a larger Sq.
+    let r = surftile(dir.path(), &["stats", plu, "--level", "poly:2"]);
+    let w: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let sq_all = w["iso25178"]["sq"].as_f64().unwrap();
+    assert!(
+        sq > 0.0 && sq < sq_all,
+        "Sq {sq} with the L-filter, {sq_all} without"
+    );
+    let npy = common::repo("tests/data/instruments/plu-1-crop.npy");
+    let r = surftile(
+        dir.path(),
+        &["stats", npy.to_str().unwrap(), "--lfilter", "50"],
+    );
+    assert!(
+        r.code != 0 && r.stderr.contains("--spacing"),
+        "{}",
+        r.stderr
+    );
+}

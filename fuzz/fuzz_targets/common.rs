@@ -89,3 +89,19 @@ pub fn text_and_choices(data: &[u8]) -> Option<(&str, &[u8])> {
     let text = std::str::from_utf8(&data[..end]).ok()?;
     Some((text, &data[end..]))
 }
+
+/// What every instrument-format target checks: any bytes give heights of the stated
+/// size with positive, finite x and y spacings and a unit, or a one-line error.
+pub fn instrument(data: &[u8], format: surftile::io::Format, what: &str) {
+    use surftile::io::{ReadOptions, read_image_bytes};
+    match read_image_bytes(data, format, what, &ReadOptions::default()) {
+        Ok(image) => {
+            let r = &image.raster;
+            assert_eq!(r.data.len(), r.width * r.height * r.channels);
+            assert!(image.spacing_um.is_some_and(|s| s > 0.0 && s.is_finite()));
+            assert!(image.spacing_y().is_some_and(|s| s > 0.0 && s.is_finite()));
+            assert!(image.unit.is_some());
+        }
+        Err(e) => assert!(!e.to_string().contains('\n'), "{e}"),
+    }
+}

@@ -21,7 +21,9 @@ fuzz_target!(|data: &[u8]| {
         return;
     }
     for k in [0, dataset.samples() - 1] {
-        let sample = dataset.sample(k).expect("an accepted spec renders its samples");
+        let sample = dataset
+            .sample(k)
+            .expect("an accepted spec renders its samples");
         assert!(sample.heights.data.iter().all(|v| v.is_finite()));
         dataset.encode(&sample).expect("a rendered sample encodes");
     }

@@ -24,8 +24,14 @@ impl<'a> Bytes<'a> {
         Bytes { bytes, what }
     }
 
-    /// A decode error naming the file.
+    /// A decode error naming the file, on one line: control characters a message
+    /// quotes from the file (a damaged name or value) become '?'.
     pub fn bad(&self, message: impl Into<String>) -> Error {
+        let message: String = message
+            .into()
+            .chars()
+            .map(|c| if c.is_control() { '?' } else { c })
+            .collect();
         Error::decode(self.what, message)
     }
 
