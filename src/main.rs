@@ -862,7 +862,7 @@ struct Operators {
 impl Operators {
     fn new(level: Leveling, lfilter: Option<f64>) -> Operators {
         Operators {
-            f: level.to_string(),
+            f: level.for_heights().to_string(),
             l: lfilter.map(|l| {
                 format!("gaussian λc = {l} µm (ISO 16610-61, zeroth-order regression at edges)")
             }),
@@ -882,9 +882,26 @@ fn with_spacing(mut image: ImageFile, spacing: Option<f64>) -> Result<ImageFile>
     Ok(image)
 }
 
-/// An L-filter cut-off `lfilter` in µm as pixels along x and y of `image`; refused
-/// where the spacing is unknown or the cut-off is not positive.
-fn lfilter_px(lfilter: Option<f64>, image: &ImageFile) -> Result<Option<(f64, f64)>> {
+/// `image` resampled to square pixels at its finer spacing where its x and y spacings
+/// differ ([`surftile::prep::resample::square_pixels`]).
+fn square_pixels(image: ImageFile) -> Result<ImageFile> {
+    match (image.non_square(), image.spacing_um, image.spacing_y()) {
+        (true, Some(dx), Some(dy)) => {
+            let (raster, d) = surftile::prep::resample::square_pixels(&image.raster, dx, dy)?;
+            Ok(ImageFile {
+                raster,
+                spacing_um: Some(d),
+                spacing_y_um: None,
+                unit: image.unit,
+            })
+        }
+        _ => Ok(image),
+    }
+}
+
+/// An L-filter cut-off `lfilter` in µm as pixels along x and y of `image` (read from
+/// `path`); refused where the spacing is unknown or the cut-off is not positive.
+fn lfilter_px(lfilter: Option<f64>, image: &ImageFile, path: &Path) -> Result<Option<(f64, f64)>> {
     let Some(l) = lfilter else {
         return Ok(None);
     };
@@ -900,7 +917,10 @@ fn lfilter_px(lfilter: Option<f64>, image: &ImageFile) -> Result<Option<(f64, f6
         _ => Err(Error::param(
             "lfilter",
             l,
-            "a map whose spacing is known: this file records none, so give --spacing UM",
+            format!(
+                "a map whose spacing is known: {} records none, so give --spacing UM",
+                path.display()
+            ),
         )),
     }
 }
@@ -958,7 +978,7 @@ fn convert_command(input: &Path, output: &Path, o: &ConvertOptions) -> Result<()
     // last, where asked, so the fill does not weigh on either.
     let mut raster = image.raster.clone();
     o.level.apply(&mut raster);
-    if let Some(cutoff) = lfilter_px(o.lfilter, &image)? {
+    if let Some(cutoff) = lfilter_px(o.lfilter, &image, input)? {
         raster = if o.waviness {
             surftile::prep::filter::waviness(&raster, cutoff)?
         } else {
@@ -980,8 +1000,12 @@ fn convert_command(input: &Path, output: &Path, o: &ConvertOptions) -> Result<()
         unit,
     };
     write_heights_with(output, &raster, &meta)?;
+    let unrecorded = matches!(
+        out_format,
+        surftile::io::Format::Npy | surftile::io::Format::Raw
+    );
     println!(
-        "wrote {} ({:?}, heights in {}{}{})",
+        "wrote {} ({:?}, heights in {}{}{}{})",
         output.display(),
         out_format,
         unit,
@@ -994,6 +1018,11 @@ fn convert_command(input: &Path, output: &Path, o: &ConvertOptions) -> Result<()
             ", {} of the Gaussian L-filter at {l} µm",
             if o.waviness { "waviness" } else { "roughness" }
         )),
+        if unrecorded {
+            "; the file records neither unit nor spacing: readers take its heights as µm unless told, its spacing from --spacing".to_string()
+        } else {
+            String::new()
+        },
     );
     Ok(())
 }
@@ -1585,26 +1614,31 @@ fn run(command: Command) -> Result<()> {
             no_structure,
         } => {
             let options = raw_options(&raw_shape)?;
-            let image_a = with_spacing(read_image(&a, &options)?, spacing)?;
-            let cutoff = lfilter_px(lfilter, &image_a)?;
+            // Each map on square pixels (the figures measure lags on the pixel grid),
+            // with its own spacing for the L-filter's cut-off.
+            let load = |path: &Path| -> Result<ImageFile> {
+                square_pixels(with_spacing(read_image(path, &options)?, spacing)?)
+            };
+            let image_a = load(&a)?;
+            let cutoff_a = lfilter_px(lfilter, &image_a, &a)?;
             let operators = Operators::new(level, lfilter);
             let Some(b) = b else {
                 let figures = surftile::stats::describe_map(
                     &image_a.raster,
                     &a.display().to_string(),
                     level,
-                    cutoff,
+                    cutoff_a,
                     fill,
                 )?;
                 let report = serde_json::json!({
                     "file": a.display().to_string(),
                     "grid": [image_a.raster.width, image_a.raster.height],
-                    "spacing_um": [image_a.spacing_um, image_a.spacing_y()],
+                    "spacing_um": image_a.spacing_um,
                     "unit_in_file": image_a.unit.map(|u| u.symbol()),
                     "heights": "µm",
                     "missing_points": image_a.raster.count_nan(),
                     "operators": operators,
-                    "sal_um": image_a.spacing_um.filter(|_| !image_a.non_square()).map(|s| s * figures.sal),
+                    "sal_um": image_a.spacing_um.map(|s| s * figures.sal),
                     "iso25178": figures,
                 });
                 println!(
@@ -1614,15 +1648,16 @@ fn run(command: Command) -> Result<()> {
                 );
                 return Ok(());
             };
-            let rb = read_image(&b, &options)?.raster;
+            let image_b = load(&b)?;
+            let cutoff_b = lfilter_px(lfilter, &image_b, &b)?;
             let figures = surftile::stats::compare_maps(
                 (&image_a.raster, &a.display().to_string()),
-                (&rb, &b.display().to_string()),
+                (&image_b.raster, &b.display().to_string()),
                 &surftile::stats::CompareOptions {
                     cell,
                     leveling: level,
                     fill_missing: fill,
-                    lfilter_px: cutoff.map(|(x, _)| x),
+                    lfilter_px: cutoff_a.zip(cutoff_b).map(|(x, y)| [x, y]),
                     structure: !no_structure,
                 },
             )?;

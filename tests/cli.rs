@@ -220,7 +220,14 @@ fn missing_arguments_are_named() {
         r.stderr
     );
     let r = surftile(dir.path(), &["stats"]);
-    assert_clean_failure(dir.path(), &r, "missing arguments: <A>, <B>", "none");
+    assert_clean_failure(dir.path(), &r, "missing argument: <A>", "none");
+    let r = surftile(dir.path(), &["convert"]);
+    assert_clean_failure(
+        dir.path(),
+        &r,
+        "missing arguments: <INPUT>, <OUTPUT>",
+        "none",
+    );
     let r = surftile(dir.path(), &["bake", "--out", "b.bank"]);
     assert_clean_failure(dir.path(), &r, "missing argument: <EXEMPLAR>", "b.bank");
     // Negative numbers reach the argument's own check, or are named as not whole.

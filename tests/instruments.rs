@@ -257,6 +257,27 @@ fn lying_sizes_are_refused_within_the_file_size() {
     }
 }
 
+/// How a test rewrites one archive entry: its new bytes, or `None` to drop it.
+type Edit<'a> = dyn Fn(&str, &[u8]) -> Option<Vec<u8>> + 'a;
+
+/// A zip of `files` (name, bytes), each rewritten by `edit`.
+fn rezip(files: &[(String, Vec<u8>)], edit: &Edit) -> Vec<u8> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    let mut w = zip::ZipWriter::new(&mut out);
+    for (name, bytes) in files {
+        if name.ends_with('/') {
+            continue;
+        }
+        if let Some(b) = edit(name, bytes) {
+            w.start_file(name.as_str(), zip::write::SimpleFileOptions::default())
+                .unwrap();
+            w.write_all(&b).unwrap();
+        }
+    }
+    w.finish().unwrap();
+    out.into_inner()
+}
+
 /// The X3P bad inputs of the issue (a wrong MD5, a zip without main.xml, sizes that
 /// disagree with the data, a truncated archive) allocate no more than the file's size.
 #[test]
@@ -271,22 +292,7 @@ fn damaged_x3p_files_are_refused_within_their_size() {
             (f.name().unwrap().to_string(), v)
         })
         .collect();
-    let rezip = |edit: &dyn Fn(&str, &[u8]) -> Option<Vec<u8>>| {
-        let mut out = std::io::Cursor::new(Vec::new());
-        let mut w = zip::ZipWriter::new(&mut out);
-        for (name, bytes) in &files {
-            if name.ends_with('/') {
-                continue;
-            }
-            if let Some(b) = edit(name, bytes) {
-                w.start_file(name.as_str(), zip::write::SimpleFileOptions::default())
-                    .unwrap();
-                w.write_all(&b).unwrap();
-            }
-        }
-        w.finish().unwrap();
-        out.into_inner()
-    };
+    let rezip = |edit: &Edit| rezip(&files, edit);
     let xml = |f: &dyn Fn(String) -> String| {
         rezip(&|n, b| {
             Some(if n == "main.xml" {
@@ -359,5 +365,85 @@ fn x3p_keeps_non_square_spacing_units_and_missing_points() {
                 "{a} nm became {b} µm"
             );
         }
+    }
+}
+
+/// A zlib-compressed SUR (`DSCOMPRESSED`, two streams) made from the plain crop reads to
+/// the same heights; one whose header claims a 5792² grid over the same few bytes is
+/// refused without allocating for that grid.
+#[test]
+fn compressed_sur_reads_and_a_lying_one_is_refused_within_its_size() {
+    use flate2::Compression;
+    use flate2::write::ZlibEncoder;
+    let plain = std::fs::read(instrument("sur-2-crop.sur")).unwrap();
+    let data = &plain[512..];
+    let half = data.len() / 2;
+    let mut streams = Vec::new();
+    for part in [&data[..half], &data[half..]] {
+        let mut z = ZlibEncoder::new(Vec::new(), Compression::default());
+        z.write_all(part).unwrap();
+        streams.push((part.len() as u32, z.finish().unwrap()));
+    }
+    let compress = |header: &[u8]| {
+        let mut out = header[..512].to_vec();
+        out[..12].copy_from_slice(b"DSCOMPRESSED");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        for (raw, z) in &streams {
+            out.extend_from_slice(&raw.to_le_bytes());
+            out.extend_from_slice(&(z.len() as u32).to_le_bytes());
+        }
+        for (_, z) in &streams {
+            out.extend_from_slice(z);
+        }
+        out
+    };
+    let packed = compress(&plain);
+    let a = read_image_bytes(
+        &packed,
+        Format::sniff(&packed).unwrap(),
+        "c.sur",
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    let b = read_image(&instrument("sur-2-crop.sur"), &ReadOptions::default()).unwrap();
+    assert_eq!(a.raster.width, b.raster.width);
+    assert!(
+        a.raster
+            .data
+            .iter()
+            .zip(&b.raster.data)
+            .all(|(x, y)| x.to_bits() == y.to_bits())
+    );
+    let mut lying = plain.clone();
+    lying[108..112].copy_from_slice(&5792i32.to_le_bytes());
+    lying[112..116].copy_from_slice(&5792i32.to_le_bytes());
+    lying[116..120].copy_from_slice(&(5792i32 * 5792).to_le_bytes());
+    let lying = compress(&lying);
+    let (result, peak) =
+        peak_during(|| read_image_bytes(&lying, Format::Sur, "lying.sur", &ReadOptions::default()));
+    let e = result.unwrap_err().to_string();
+    assert!(e.contains("lying.sur") && e.contains("streams hold"), "{e}");
+    assert!(peak <= lying.len() + (64 << 10), "allocated {peak}");
+}
+
+/// An SDF whose data holds more values than its header's grid is refused, as is one
+/// holding fewer.
+#[test]
+fn sdf_value_counts_must_match_the_header() {
+    let good = std::fs::read_to_string(instrument("sdf-1.sdf")).unwrap();
+    for (from, to) in [
+        ("NumProfiles = 4", "NumProfiles = 3"),
+        ("NumProfiles = 4", "NumProfiles = 5"),
+    ] {
+        let bad = good.replace(from, to);
+        let e = read_image_bytes(
+            bad.as_bytes(),
+            Format::Sdf,
+            "n.sdf",
+            &ReadOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("28 values"), "{to}: {e}");
     }
 }

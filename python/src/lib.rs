@@ -916,6 +916,38 @@ fn bake(
     let source = surftile::Source::from_bank(bank).py()?;
     Ok(Bank { source, log })
 }
+/// Reads a height file the CLI reads (instrument formats — X3P, AL3D, PLU, SUR, OPD,
+/// Nanoscope, MetroPro, SDF — and npy, TIFF, PNG; recognised by content) as a dict:
+/// `heights` (float32 array, rows × cols, in µm, NaN where missing), `spacing_um`
+/// ((x, y), or None where the file records none), `unit_in_file` (the unit the file
+/// stored heights in, or None) and `missing` (the count of missing points).
+#[pyfunction]
+fn read<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
+    let Some(path) = as_path(path) else {
+        return Err(wrong_type("path", path, "a file path (str or os.PathLike)"));
+    };
+    let image = py
+        .detach(|| read_image(&path, &ReadOptions::default()))
+        .py()?;
+    let r = &image.raster;
+    let d = PyDict::new(py);
+    let missing = r.count_nan();
+    let (h, w, c) = (r.height, r.width, r.channels);
+    let heights = PyArray::from_vec(py, image.raster.data.clone());
+    if c == 1 {
+        d.set_item("heights", heights.reshape([h, w])?)?;
+    } else {
+        d.set_item("heights", heights.reshape([h, w, c])?)?;
+    }
+    d.set_item(
+        "spacing_um",
+        image.spacing_um.zip(image.spacing_y()),
+    )?;
+    d.set_item("unit_in_file", image.unit.map(|u| u.symbol()))?;
+    d.set_item("missing", missing)?;
+    Ok(d)
+}
+
 /// The quality figures of `b` (a synthesis) against `a` (an exemplar), as `surftile
 /// stats` prints them: W1 of the standardised height histograms, PSD error, standard
 /// deviation ratio, seam score of `b` at `cell` px, and (with `structure`) the patch
@@ -965,5 +997,6 @@ fn _surftile(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(open, m)?)?;
     m.add_function(wrap_pyfunction!(bake, m)?)?;
     m.add_function(wrap_pyfunction!(stats, m)?)?;
+    m.add_function(wrap_pyfunction!(read, m)?)?;
     Ok(())
 }

@@ -380,19 +380,33 @@ impl Baker {
         })
     }
 
-    /// The exemplar as analysis sees it: missing points filled (or refused), levelled,
-    /// down-sampled. Returns the raster and its spacing in µm.
+    /// The exemplar as analysis sees it: resampled to square pixels where its file gives
+    /// different x and y spacings (and no spacing was given instead), missing points
+    /// filled (or refused), levelled, down-sampled. Returns the raster and its spacing in
+    /// µm.
     pub fn preprocess(&self, image: &ImageFile, source: &str) -> Result<(Raster, Option<f64>)> {
+        let mut exemplar = std::borrow::Cow::Borrowed(&image.raster);
+        let mut file_spacing = image.spacing_um;
+        if let (None, true, Some(dx), Some(dy)) = (
+            self.spacing_um,
+            image.non_square(),
+            image.spacing_um,
+            image.spacing_y(),
+        ) {
+            let (square, d) = crate::prep::resample::square_pixels(&image.raster, dx, dy)?;
+            exemplar = std::borrow::Cow::Owned(square);
+            file_spacing = Some(d);
+        }
         let raster = crate::prep::Prep {
             fill_missing: self.fill_missing,
             leveling: self.leveling,
             downsample: self.downsample,
             filter: self.filter,
         }
-        .apply(&image.raster, source)?;
+        .apply(&exemplar, source)?;
         let spacing = self
             .spacing_um
-            .or(image.spacing_um)
+            .or(file_spacing)
             .map(|s| s * self.downsample as f64);
         if raster.width < MIN_EXEMPLAR_SIDE || raster.height < MIN_EXEMPLAR_SIDE {
             return Err(Error::TooSmall {

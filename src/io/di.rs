@@ -62,8 +62,19 @@ fn unit_um(unit: &str) -> Option<(f64, super::Unit)> {
         "mm" => (1e3, Unit::Mm),
         "~m" | "um" | "µm" => (1.0, Unit::Um),
         "nm" => (1e-3, Unit::Nm),
-        "pm" => (1e-6, Unit::Nm),
-        "Å" | "A" => (1e-4, Unit::Nm),
+        "pm" => (1e-6, Unit::Pm),
+        "Å" | "A" => (1e-4, Unit::Angstrom),
+        _ => return None,
+    })
+}
+
+/// Volts in one of `unit` (`V`, `mV`, `~V` or `uV`, `nV`).
+fn volts(unit: &str) -> Option<f64> {
+    Some(match unit {
+        "V" => 1.0,
+        "mV" => 1e-3,
+        "~V" | "uV" | "µV" => 1e-6,
+        "nV" => 1e-9,
         _ => return None,
     })
 }
@@ -201,7 +212,7 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let z = image.get("@2:Z scale").ok_or_else(|| {
         b.bad("its Nanoscope image has no @2:Z scale (a header older than version 4.3)")
     })?;
-    let (soft, hard, _) = soft_scale(z).ok_or_else(|| {
+    let (soft, hard, hard_unit) = soft_scale(z).ok_or_else(|| {
         b.bad(format!(
             "its Nanoscope @2:Z scale is '{z}'; expected 'V [name] (…) value unit'"
         ))
@@ -218,12 +229,26 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         ))
     })?;
     let unit = words.next().unwrap_or("");
-    let z_unit = unit.split('/').next().unwrap_or("");
+    let (z_unit, per) = unit.split_once('/').unwrap_or((unit, ""));
     let (z_um, file_unit) = unit_um(z_unit).ok_or_else(|| {
         b.bad(format!(
             "its Nanoscope channel's unit is '{unit}', not a length: not a height channel"
         ))
     })?;
+    // The Z scale's hard value and the sensitivity's denominator are volts, each with
+    // an SI prefix of its own.
+    let (hv, pv) = (volts(&hard_unit), volts(per));
+    let (Some(hv), Some(pv)) = (hv, pv) else {
+        return Err(b.bad(format!(
+            "its Nanoscope Z scale is in '{hard_unit}' and its sensitivity per '{per}'; expected volts (V, mV, ~V, nV)"
+        )));
+    };
+    if !(hard.is_finite() && s.is_finite() && hard != 0.0 && s != 0.0) {
+        return Err(b.bad(format!(
+            "its Nanoscope Z scale {hard} or sensitivity {s} is not a finite, non-zero number"
+        )));
+    }
+    let hard = hard * hv / pv;
     let scan = image
         .get("Scan Size")
         .or_else(|| scanner("Scan Size"))

@@ -89,6 +89,11 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         1.0
     };
     let k = sign * scale * wavelength * obliquity / r * 1e6;
+    if !(k.is_finite() && k != 0.0) {
+        return Err(b.bad(format!(
+            "its MetroPro height scale (scale factor {scale} × wavelength {wavelength} m × obliquity {obliquity}) is 0 or not finite"
+        )));
+    }
     let data = b.grid(header + intensity, (nx, ny), 4, None)?;
     let heights = data
         .chunks_exact(4)

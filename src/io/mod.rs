@@ -88,6 +88,10 @@ pub enum Unit {
     Um,
     /// Nanometres.
     Nm,
+    /// Ångströms.
+    Angstrom,
+    /// Picometres.
+    Pm,
 }
 
 impl Unit {
@@ -98,6 +102,8 @@ impl Unit {
             Unit::Mm => 1e3,
             Unit::Um => 1.0,
             Unit::Nm => 1e-3,
+            Unit::Angstrom => 1e-4,
+            Unit::Pm => 1e-6,
         }
     }
 
@@ -108,16 +114,22 @@ impl Unit {
             Unit::Mm => "mm",
             Unit::Um => "µm",
             Unit::Nm => "nm",
+            Unit::Angstrom => "Å",
+            Unit::Pm => "pm",
         }
     }
 
-    /// The unit a symbol names: `m`, `mm`, `um`/`µm`/`μm` or `nm` (any case).
+    /// The unit a symbol names: `m`, `mm`, `um`/`µm`/`μm`, `nm`, `A`/`Å` or `pm`.
     pub fn parse(text: &str) -> Option<Unit> {
+        if matches!(text.trim(), "Å" | "A" | "angstrom") {
+            return Some(Unit::Angstrom);
+        }
         match text.trim().to_lowercase().as_str() {
             "m" => Some(Unit::M),
             "mm" => Some(Unit::Mm),
             "um" | "µm" | "μm" | "micron" | "microns" => Some(Unit::Um),
             "nm" => Some(Unit::Nm),
+            "pm" => Some(Unit::Pm),
             _ => None,
         }
     }
@@ -132,7 +144,8 @@ impl std::fmt::Display for Unit {
 impl std::str::FromStr for Unit {
     type Err = String;
     fn from_str(text: &str) -> std::result::Result<Unit, String> {
-        Unit::parse(text).ok_or_else(|| format!("'{text}' is not a unit; expected um, nm, mm or m"))
+        Unit::parse(text)
+            .ok_or_else(|| format!("'{text}' is not a unit; expected um, nm, mm, m, A or pm"))
     }
 }
 
@@ -412,6 +425,18 @@ pub fn read_image_bytes(
     let mut image = image;
     if !image.non_square() {
         image.spacing_y_um = None;
+    }
+    // An instrument's scale can carry a raw value past f32's range: such a point is not
+    // a height, so it is missing, as the formats' own invalid markers are.
+    if !matches!(
+        format,
+        Format::Png | Format::Tiff | Format::Npy | Format::Raw
+    ) {
+        for v in &mut image.raster.data {
+            if v.is_infinite() {
+                *v = f32::NAN;
+            }
+        }
     }
     for (name, s) in [("x", image.spacing_um), ("y", image.spacing_y_um)] {
         if let Some(s) = s

@@ -42,12 +42,7 @@ fn check(b: &Bytes, h: &Header, compression: u64) -> Result<()> {
     }
     positive(b, "Xscale", h.dx)?;
     positive(b, "Yscale", h.dy)?;
-    if !h.dz.is_finite() || h.dz == 0.0 {
-        return Err(b.bad(format!(
-            "its SDF Zscale is {}; expected a non-zero number",
-            h.dz
-        )));
-    }
+    positive(b, "Zscale", h.dz)?;
     super::check_shape(b.what, h.nx, h.ny, 1)?;
     Ok(())
 }
@@ -111,13 +106,15 @@ fn read_text(b: &Bytes) -> Result<ImageFile> {
         )));
     }
     let mut values = Vec::with_capacity(n);
-    'data: for line in lines {
+    let mut extra = 0usize;
+    for line in lines {
         if line.trim_start().starts_with('*') {
             break;
         }
         for token in line.split_whitespace() {
             if values.len() == n {
-                break 'data;
+                extra += 1;
+                continue;
             }
             let v = if token.eq_ignore_ascii_case("bad") {
                 f32::NAN
@@ -132,10 +129,11 @@ fn read_text(b: &Bytes) -> Result<ImageFile> {
             values.push(if v.is_finite() { v } else { f32::NAN });
         }
     }
-    if values.len() != n {
+    if values.len() != n || extra > 0 {
         return Err(b.bad(format!(
-            "truncated: its SDF data holds {} values; the header says {}×{} = {n}",
-            values.len(),
+            "{}its SDF data holds {} values; the header says {}×{} = {n}",
+            if extra > 0 { "" } else { "truncated: " },
+            values.len() + extra,
             h.nx,
             h.ny
         )));

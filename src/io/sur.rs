@@ -24,8 +24,8 @@ fn unit_um(unit: &str) -> Option<(f64, super::Unit)> {
         "mm" => (1e3, Unit::Mm),
         "µm" | "um" | "\u{3bc}m" => (1.0, Unit::Um),
         "nm" => (1e-3, Unit::Nm),
-        "Å" | "A" => (1e-4, Unit::Nm),
-        "pm" => (1e-6, Unit::Nm),
+        "Å" | "A" => (1e-4, Unit::Angstrom),
+        "pm" => (1e-6, Unit::Pm),
         _ => return None,
     })
 }
@@ -75,15 +75,14 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         )));
     }
     let unit = |field: &str, at: usize| -> Result<(f64, super::Unit)> {
-        let text = String::from_utf8_lossy(b.slice(field, at, 16)?)
+        // Latin-1: 0xB5 is µ, 0xC5 is Å.
+        let text: String = b
+            .slice(field, at, 16)?
+            .iter()
+            .map(|&c| c as char)
+            .collect::<String>()
             .trim_matches(|c: char| c == '\0' || c.is_whitespace())
             .to_string();
-        // 0xB5 (Latin-1 µ) decodes lossily; take it as µm.
-        let text = if text.ends_with('m') && text.len() > 1 && !text.is_ascii() {
-            "µm".to_string()
-        } else {
-            text
-        };
         unit_um(&text)
             .ok_or_else(|| b.bad(format!("its SUR {field} is '{text}', not a length unit")))
     };
@@ -94,9 +93,9 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let dy = positive(&b, "Y spacing", (b.f32("Y spacing", 124, le)? as f64).abs())? * uy;
     let dz = b.f32("Z spacing", 128, le)? as f64;
     let z0 = b.f32("Z offset", 474, le)? as f64;
-    if !dz.is_finite() || !z0.is_finite() {
+    if !dz.is_finite() || dz == 0.0 || !z0.is_finite() {
         return Err(b.bad(format!(
-            "its SUR Z spacing {dz} or offset {z0} is not finite"
+            "its SUR Z spacing {dz} or offset {z0} is not finite (or the spacing is 0)"
         )));
     }
     let zones = b.u16("comment size", 334, le)? as usize + b.u16("private size", 336, le)? as usize;
@@ -113,17 +112,26 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         let mut at = offset + 4 + 8 * n;
         b.slice("stream directory", offset + 4, 8 * n)?;
         let want = nx * ny * elem;
-        let mut raw_total = 0usize;
-        let mut out = Vec::with_capacity(want);
+        // The whole directory is checked before anything is inflated: the streams'
+        // sizes must add up to the grid's, and their compressed bytes must be present.
+        let mut sizes = Vec::with_capacity(n);
+        let (mut raw_total, mut zipped_total) = (0u64, 0u64);
         for k in 0..n {
             let raw = b.u32("stream size", offset + 4 + 8 * k, le)? as usize;
             let zipped = b.u32("stream size", offset + 8 + 8 * k, le)? as usize;
-            raw_total = raw_total.saturating_add(raw);
-            if raw_total > want {
-                return Err(b.bad(format!(
-                    "its SUR streams hold more than the {want} bytes of a {nx}×{ny} grid"
-                )));
-            }
+            raw_total += raw as u64;
+            zipped_total += zipped as u64;
+            sizes.push((raw, zipped));
+        }
+        if raw_total != want as u64 {
+            return Err(b.bad(format!(
+                "its SUR streams hold {raw_total} bytes; a {nx}×{ny} grid of {bits}-bit points needs {want}"
+            )));
+        }
+        b.slice("compressed streams", at, zipped_total as usize)?;
+        // Nothing is reserved from the header's sizes: the buffer grows as data inflates.
+        let mut out = Vec::new();
+        for (k, &(raw, zipped)) in sizes.iter().enumerate() {
             let stream = b.slice("compressed stream", at, zipped)?;
             at += zipped;
             let before = out.len();

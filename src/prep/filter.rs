@@ -62,18 +62,29 @@ pub fn waviness(raster: &Raster, (lambda_x, lambda_y): (f64, f64)) -> Result<Ras
     }
     let (w, h) = (raster.width, raster.height);
     // The weighting function is below 10⁻⁶ of its peak beyond one cut-off wavelength, so
-    // padding by λc (or by the side, past which nothing can wrap) keeps the circular
-    // convolution from folding one edge onto the other.
-    let pad = |side: usize, l: f64| (l.ceil() as usize).min(side);
-    let (pw, ph) = (
-        smooth_size(w + pad(w, lambda_x)),
-        smooth_size(h + pad(h, lambda_y)),
-    );
-    if pw.checked_mul(ph).is_none_or(|n| n > MAX_PADDED) {
+    // padding by λc keeps the circular convolution from folding one edge onto the other
+    // (however long λc is against the map: the kernel's periodic copies must fall off
+    // too).
+    let pad = |side: usize, l: f64| {
+        let l = l.ceil();
+        if l < MAX_PADDED as f64 {
+            side.checked_add(l as usize)
+        } else {
+            None
+        }
+    };
+    let padded = match (pad(w, lambda_x), pad(h, lambda_y)) {
+        (Some(a), Some(b)) if a <= MAX_PADDED && b <= MAX_PADDED => {
+            Some((smooth_size(a), smooth_size(b)))
+        }
+        _ => None,
+    };
+    let Some((pw, ph)) = padded.filter(|(a, b)| a.checked_mul(*b).is_some_and(|n| n <= MAX_PADDED))
+    else {
         return Err(Error::Limits(format!(
-            "the L-filter of a {w}×{h} map pads it to {pw}×{ph} points; at most {MAX_PADDED} (2^26)"
+            "the L-filter of a {w}×{h} map at a cut-off of {lambda_x:.1}×{lambda_y:.1} px pads it past {MAX_PADDED} (2^26) points; give a shorter cut-off"
         )));
-    }
+    };
     let mut fft = RealFft2::new(pw, ph);
     let half = fft.half_width();
     // The transfer function on the half spectrum (frequencies in cycles per pixel).
@@ -139,10 +150,11 @@ mod tests {
     use super::*;
 
     /// Amplitude of a sine along x of wavelength `period` px, by projection over the
-    /// rows and columns at least `margin` from the edges.
+    /// columns at least `margin` from the left and right edges (the sine is constant
+    /// along y, where the edges bias nothing).
     fn amplitude(r: &Raster, period: f64, margin: usize) -> f64 {
         let (mut s, mut c, mut n) = (0.0, 0.0, 0.0);
-        for y in margin..r.height - margin {
+        for y in 0..r.height {
             for x in margin..r.width - margin {
                 let p = 2.0 * std::f64::consts::PI * x as f64 / period;
                 let z = r.data[y * r.width + x] as f64;
@@ -176,6 +188,7 @@ mod tests {
             amplitude(&wavy, lambda, margin),
             amplitude(&rough, lambda, margin),
         );
+        eprintln!("transmission at the cut-off: waviness {tw:.4}, roughness {tr:.4}");
         assert!((tw - 0.5).abs() < 0.01, "waviness transmission {tw}");
         assert!((tr - 0.5).abs() < 0.01, "roughness transmission {tr}");
         let short = sine(w, h, lambda / 5.0);
@@ -185,7 +198,8 @@ mod tests {
             margin,
         );
         assert!(t < 1e-6, "a fifth of the cut-off passes {t}");
-        let long = sine(w, h, 200.0);
+        // 1000 px between the margins: whole periods, so the projection is exact.
+        let long = sine(1080, 8, 200.0);
         let t = amplitude(&waviness(&long, (lambda, lambda)).unwrap(), 200.0, margin);
         let want = transmission(1.0 / 200.0, lambda);
         assert!(
@@ -206,6 +220,33 @@ mod tests {
                 assert!(v.is_nan());
             } else {
                 assert!((v - 3.0).abs() < 1e-5, "{i}: {v}");
+            }
+        }
+    }
+
+    /// The waviness at every point equals the directly summed, edge-normalised Gaussian
+    /// mean (the slow reference), also for cut-offs longer than the map, where a kernel
+    /// wrapped around the padded grid would pull each end toward the other.
+    #[test]
+    fn matches_the_direct_weighted_mean_at_any_cut_off() {
+        let (w, h) = (100, 3);
+        let z = |x: usize| (x as f64 * 0.37).sin() + x as f64 * 0.05;
+        let data = (0..w * h).map(|i| z(i % w) as f32).collect();
+        let r = Raster::from_vec(w, h, 1, data).unwrap();
+        for lambda in [10.0, 60.0, 200.0, 400.0] {
+            let wavy = waviness(&r, (lambda, 1e-3)).unwrap();
+            let g = |d: f64| (-std::f64::consts::PI * (d / (alpha() * lambda)).powi(2)).exp();
+            for x in [0, 1, 37, 98, 99] {
+                let (num, den) = (0..w).fold((0.0, 0.0), |(n, d), t| {
+                    let k = g(t as f64 - x as f64);
+                    (n + k * z(t), d + k)
+                });
+                let want = num / den;
+                let got = wavy.data[w + x] as f64;
+                assert!(
+                    (got - want).abs() < 1e-4,
+                    "λc {lambda}, x {x}: {got} vs {want}"
+                );
             }
         }
     }

@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 use crate::raster::Raster;
 use level::level_plane;
 use missing::fill_missing;
+use missing::fill_missing as fill_missing_points;
 use resample::{DownsampleFilter, downsample};
 
 /// Largest magnitude a map's values may have (10³⁰): far beyond any height or colour,
@@ -51,6 +52,14 @@ impl Leveling {
         }
     }
 
+    /// The operator as applied to a height map: `auto` is the plane there.
+    pub fn for_heights(self) -> Leveling {
+        match self {
+            Leveling::Auto => Leveling::Plane,
+            other => other,
+        }
+    }
+
     /// Removes the form from `raster` as this operator says.
     pub fn apply(self, raster: &mut Raster) {
         match self.degree(raster.channels) {
@@ -66,6 +75,7 @@ impl std::fmt::Display for Leveling {
         match self {
             Leveling::Auto => f.write_str("auto"),
             Leveling::Plane => f.write_str("plane"),
+            Leveling::Poly(1) => f.write_str("plane"),
             Leveling::Poly(n) => write!(f, "poly:{n}"),
             Leveling::None => f.write_str("none"),
         }
@@ -112,6 +122,59 @@ impl<'de> serde::Deserialize<'de> for Leveling {
     }
 }
 
+/// Refuses infinite values and magnitudes over [`MAX_VALUE`] (missing points, NaN, are
+/// let through).
+pub fn check_values(r: &Raster, what: &str) -> Result<()> {
+    if r.data.iter().any(|v| v.is_infinite()) {
+        return Err(Error::decode(what, "the map holds infinite values"));
+    }
+    let largest = r
+        .data
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold(0.0f32, |m, v| m.max(v.abs()));
+    if largest > MAX_VALUE {
+        return Err(Error::decode(
+            what,
+            format!(
+                "values up to {largest:e}; expected magnitudes up to {MAX_VALUE:e} (the analysis sums and squares them in f32 tables)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The scale-limited surface of a height map (ISO 25178-3): the form removed by the
+/// F-operator `form` (`auto` is the plane), then, where `lfilter_px` gives the cut-off
+/// in pixels along x and y, the waviness removed by the Gaussian L-filter, both over the
+/// defined points only; then missing points filled smoothly (`fill_missing`) or refused.
+pub fn scale_limited(
+    raster: &Raster,
+    what: &str,
+    form: Leveling,
+    lfilter_px: Option<(f64, f64)>,
+    fill_missing: bool,
+) -> Result<Raster> {
+    check_values(raster, what)?;
+    let mut r = raster.clone();
+    form.for_heights().apply(&mut r);
+    if let Some(cutoff) = lfilter_px {
+        r = filter::roughness(&r, cutoff)?;
+    }
+    let missing = r.count_nan();
+    if missing > 0 {
+        if !fill_missing {
+            return Err(Error::MissingData {
+                what: what.to_string(),
+                count: missing,
+                total: r.data.len(),
+            });
+        }
+        fill_missing_points(&mut r, what)?;
+    }
+    Ok(r)
+}
+
 /// The preprocessing steps and their options.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Prep {
@@ -151,18 +214,7 @@ impl Prep {
             }
             fill_missing(&mut r, what)?;
         }
-        if r.data.iter().any(|v| v.is_infinite()) {
-            return Err(Error::decode(what, "the map holds infinite values"));
-        }
-        let largest = r.data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-        if largest > MAX_VALUE {
-            return Err(Error::decode(
-                what,
-                format!(
-                    "values up to {largest:e}; expected magnitudes up to {MAX_VALUE:e} (the analysis sums and squares them in f32 tables)"
-                ),
-            ));
-        }
+        check_values(&r, what)?;
         self.leveling.apply(&mut r);
         if self.downsample == 1 {
             Ok(r)

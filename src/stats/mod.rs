@@ -88,8 +88,9 @@ pub struct CompareOptions {
     pub leveling: crate::prep::Leveling,
     /// Fill missing points smoothly instead of refusing a map with any.
     pub fill_missing: bool,
-    /// Gaussian L-filter cut-off in pixels of the height figures (`None`: no filter).
-    pub lfilter_px: Option<f64>,
+    /// Gaussian L-filter cut-offs of the height figures in pixels, (x, y) for A then
+    /// for B (each map's own spacing), or `None`: no filter.
+    pub lfilter_px: Option<[(f64, f64); 2]>,
     /// Compute the structure (patch) figures too.
     pub structure: bool,
 }
@@ -110,32 +111,29 @@ pub fn compare_maps(
         return Err(Error::param("cell", 0, "a cell size of at least 1 pixel"));
     }
     let levelled = options.leveling != Leveling::None;
-    let prep = Prep {
-        fill_missing: options.fill_missing,
-        leveling: Leveling::None,
-        ..Prep::default()
+    // The height figures read channel 0 as a scale-limited surface: form removed as
+    // asked (any polynomial degree; `auto` is the plane) and the L-filter where asked,
+    // over the defined points, then missing points filled or refused. The patch
+    // figures read height maps so, and colour with its missing points filled.
+    let height_channel = |full: &Raster, what: &str, k: usize| {
+        crate::prep::scale_limited(
+            &full.channel(0),
+            what,
+            options.leveling,
+            options.lfilter_px.map(|l| l[k]),
+            options.fill_missing,
+        )
     };
-    let (raw_a, raw_b) = (prep.apply(a, what_a)?, prep.apply(b, what_b)?);
-    // The height figures read channel 0 with its form removed as asked (any polynomial
-    // degree; `auto` is the plane) and the L-filter where asked, whatever the channel
-    // count; the patch figures read height maps so, and colour as it is.
-    let height_channel = |full: &Raster| -> crate::Result<Raster> {
-        let mut r = full.channel(0);
-        let form = match options.leveling {
-            Leveling::Auto => Leveling::Plane,
-            other => other,
-        };
-        form.apply(&mut r);
-        match options.lfilter_px {
-            Some(l) => crate::prep::filter::roughness(&r, (l, l)),
-            None => Ok(r),
-        }
-    };
-    let (ra, rb) = (height_channel(&raw_a)?, height_channel(&raw_b)?);
-    let (full_a, full_b) = if raw_a.channels == 1 && raw_b.channels == 1 {
+    let (ra, rb) = (height_channel(a, what_a, 0)?, height_channel(b, what_b, 1)?);
+    let (full_a, full_b) = if a.channels == 1 && b.channels == 1 {
         (ra.clone(), rb.clone())
     } else {
-        (raw_a, raw_b)
+        let prep = Prep {
+            fill_missing: options.fill_missing,
+            leveling: Leveling::None,
+            ..Prep::default()
+        };
+        (prep.apply(a, what_a)?, prep.apply(b, what_b)?)
     };
     for (what, r) in [(what_a, &ra), (what_b, &rb)] {
         if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
@@ -176,10 +174,10 @@ pub fn compare_maps(
 }
 
 /// The ISO 25178 figures ([`HeightStats`]) of one height map on its scale-limited
-/// surface: missing points refused or filled (`fill_missing`), form removed by `form`
-/// (the F-operator; `auto` is the plane), then, where `lfilter_px` gives cut-offs in
-/// pixels along x and y, the roughness of the Gaussian L-filter. Refuses maps under
-/// [`MIN_STATS_SIDE`] and maps of more than one channel.
+/// surface ([`crate::prep::scale_limited`]: form removed by `form`, waviness by the
+/// L-filter where `lfilter_px` gives cut-offs in pixels along x and y, then missing
+/// points filled or refused). Refuses maps under [`MIN_STATS_SIDE`] and maps of more
+/// than one channel.
 pub fn describe_map(
     raster: &Raster,
     what: &str,
@@ -188,7 +186,6 @@ pub fn describe_map(
     fill_missing: bool,
 ) -> crate::Result<HeightStats> {
     use crate::error::Error;
-    use crate::prep::{Leveling, Prep};
     if raster.channels != 1 {
         return Err(Error::param(
             "map",
@@ -205,18 +202,7 @@ pub fn describe_map(
             ),
         });
     }
-    let prep = Prep {
-        fill_missing,
-        leveling: match form {
-            Leveling::Auto => Leveling::Plane,
-            other => other,
-        },
-        ..Prep::default()
-    };
-    let mut r = prep.apply(raster, what)?;
-    if let Some(l) = lfilter_px {
-        r = crate::prep::filter::roughness(&r, l)?;
-    }
+    let r = crate::prep::scale_limited(raster, what, form, lfilter_px, fill_missing)?;
     Ok(height_stats(&r))
 }
 

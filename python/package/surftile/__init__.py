@@ -24,6 +24,7 @@ from ._surftile import (
     __version__,
     bake,
     open,
+    read,
     stats,
 )
 
@@ -36,5 +37,6 @@ __all__ = [
     "bake",
     "dataset",
     "open",
+    "read",
     "stats",
 ]

@@ -123,6 +123,12 @@ def bake(
     """Analyses an exemplar (a path, or a (rows, cols[, channels]) array of floats or
     integers) into a bank. `params` are the CLI's `bake` flags with underscores."""
 
+def read(path: PathLike) -> Dict[str, Any]:
+    """Reads a height file (instrument formats: X3P, AL3D, PLU, SUR, OPD, Nanoscope,
+    MetroPro, SDF; and npy, TIFF, PNG): {"heights": float32 (rows, cols) in µm with NaN
+    where missing, "spacing_um": (x, y) or None, "unit_in_file": str or None,
+    "missing": int}."""
+
 def stats(
     a: Union[PathLike, ArrayLike],
     b: Union[PathLike, ArrayLike],
