@@ -187,10 +187,7 @@ fn image_from(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<(ImageFile, String
         "numpy array ({}×{}×{})",
         raster.height, raster.width, raster.channels
     );
-    Ok((
-        ImageFile::new(raster, None),
-        what,
-    ))
+    Ok((ImageFile::new(raster, None), what))
 }
 
 /// What `surftile.open` returns: a loaded source, placed by [`Source::surface`].
@@ -939,10 +936,7 @@ fn read<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bound<'py, P
     } else {
         d.set_item("heights", heights.reshape([h, w, c])?)?;
     }
-    d.set_item(
-        "spacing_um",
-        image.spacing_um.zip(image.spacing_y()),
-    )?;
+    d.set_item("spacing_um", image.spacing_um.zip(image.spacing_y()))?;
     d.set_item("unit_in_file", image.unit.map(|u| u.symbol()))?;
     d.set_item("missing", missing)?;
     Ok(d)
