@@ -850,26 +850,6 @@ fn dataset_command(
     Ok(())
 }
 
-/// The operators `stats` and `convert` applied, named in their reports (ISO 25178-3).
-#[derive(serde::Serialize)]
-struct Operators {
-    /// The F-operator: `poly:N`, `plane` or `none`.
-    f: String,
-    /// The L-filter: `gaussian λc = … µm (ISO 16610-61)`, or none.
-    l: Option<String>,
-}
-
-impl Operators {
-    fn new(level: Leveling, lfilter: Option<f64>) -> Operators {
-        Operators {
-            f: level.for_heights().to_string(),
-            l: lfilter.map(|l| {
-                format!("gaussian λc = {l} µm (ISO 16610-61, zeroth-order regression at edges)")
-            }),
-        }
-    }
-}
-
 /// `image` with its x and y spacing set to `spacing` µm where given (checked positive).
 fn with_spacing(mut image: ImageFile, spacing: Option<f64>) -> Result<ImageFile> {
     if let Some(s) = spacing {
@@ -1621,7 +1601,7 @@ fn run(command: Command) -> Result<()> {
             };
             let image_a = load(&a)?;
             let cutoff_a = lfilter_px(lfilter, &image_a, &a)?;
-            let operators = Operators::new(level, lfilter);
+            let operators = surftile::stats::Operators::new(level, lfilter);
             let Some(b) = b else {
                 let figures = surftile::stats::describe_map(
                     &image_a.raster,

@@ -447,3 +447,35 @@ fn sdf_value_counts_must_match_the_header() {
         assert!(e.contains("28 values"), "{to}: {e}");
     }
 }
+
+/// TIFF and PNG record the height unit (in ASCII, Å as `A`) and their readers return
+/// µm: heights written in Å and nm read back ×1e-4 and ×1e-3.
+#[test]
+fn tiff_and_png_record_the_height_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let data: Vec<f32> = (0..64).map(|k| (k as f32 * 0.3).sin() * 500.0).collect();
+    let raster = surftile::raster::Raster::from_vec(8, 8, 1, data.clone()).unwrap();
+    for (name, unit, k, tol) in [
+        ("a.tif", Unit::Angstrom, 1e-4, 1e-6),
+        ("n.png", Unit::Nm, 1e-3, 2e-5),
+    ] {
+        let path = dir.path().join(name);
+        let meta = WriteMeta {
+            spacing_um: Some(0.5),
+            spacing_y_um: Some(0.25),
+            unit,
+        };
+        write_heights_with(&path, &raster, &meta).unwrap();
+        let back = read_image(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(back.unit, Some(unit), "{name}");
+        assert_eq!(
+            (back.spacing_um, back.spacing_y_um),
+            (Some(0.5), Some(0.25))
+        );
+        for (a, b) in data.iter().zip(&back.raster.data) {
+            let want = *a as f64 * k;
+            // PNG quantises to 16 bits over the range.
+            assert!((want - *b as f64).abs() <= tol, "{name}: {want} vs {b}");
+        }
+    }
+}

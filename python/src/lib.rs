@@ -974,8 +974,11 @@ fn stats<'py>(
     let figures = py
         .detach(|| surftile::stats::compare_maps((&ia.raster, &wa), (&ib.raster, &wb), &options))
         .py()?;
-    let value =
+    let mut value =
         serde_json::to_value(&figures).map_err(|e| PyValueError::new_err(format!("stats: {e}")))?;
+    // The operators, as the CLI names them.
+    value["operators"] = serde_json::to_value(surftile::stats::Operators::new(leveling, None))
+        .map_err(|e| PyValueError::new_err(format!("stats: {e}")))?;
     json_to_py(py, &value)
 }
 

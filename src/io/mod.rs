@@ -119,6 +119,18 @@ impl Unit {
         }
     }
 
+    /// The unit's ASCII name, as metadata stores it: `m`, `mm`, `um`, `nm`, `A`, `pm`.
+    pub fn ascii(self) -> &'static str {
+        match self {
+            Unit::M => "m",
+            Unit::Mm => "mm",
+            Unit::Um => "um",
+            Unit::Nm => "nm",
+            Unit::Angstrom => "A",
+            Unit::Pm => "pm",
+        }
+    }
+
     /// The unit a symbol names: `m`, `mm`, `um`/`µm`/`μm`, `nm`, `A`/`Å` or `pm`.
     pub fn parse(text: &str) -> Option<Unit> {
         if matches!(text.trim(), "Å" | "A" | "angstrom") {
@@ -230,7 +242,7 @@ impl HeightMeta {
         HeightMeta {
             spacing_um: meta.spacing_um,
             spacing_y_um: meta.spacing_y_um,
-            height_unit: (meta.unit != Unit::Um).then(|| meta.unit.symbol().to_string()),
+            height_unit: (meta.unit != Unit::Um).then(|| meta.unit.ascii().to_string()),
             ..HeightMeta::default()
         }
     }

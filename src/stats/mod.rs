@@ -73,6 +73,29 @@ pub struct Comparison {
     pub structure: Option<StructureFigures>,
 }
 
+/// The operators that made a scale-limited surface (ISO 25178-3), as `surftile stats`
+/// names them in its JSON.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Operators {
+    /// The F-operator: `poly:N`, `plane` or `none`.
+    pub f: String,
+    /// The L-filter: the Gaussian's cut-off in µm, or `None`.
+    pub l: Option<String>,
+}
+
+impl Operators {
+    /// The operators of form removal `level` (`auto` is the plane on a height map) and
+    /// an L-filter at `lfilter_um`.
+    pub fn new(level: crate::prep::Leveling, lfilter_um: Option<f64>) -> Operators {
+        Operators {
+            f: level.for_heights().to_string(),
+            l: lfilter_um.map(|l| {
+                format!("gaussian λc = {l} µm (ISO 16610-61, zeroth-order regression at edges)")
+            }),
+        }
+    }
+}
+
 /// Smallest side `compare_maps` takes: the PSD error's smallest window.
 pub const MIN_STATS_SIDE: usize = 8;
 
