@@ -61,6 +61,7 @@ pub mod kinds;
 pub mod lattice;
 pub mod models;
 pub(crate) mod nn;
+pub mod normals;
 pub mod prep;
 pub mod raster;
 pub mod render;

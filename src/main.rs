@@ -19,6 +19,7 @@ use surftile::io::{
 use surftile::models::milling::{MillingConfig, MillingSurface};
 use surftile::models::rsgf::{Join, Metric};
 use surftile::models::synth::SynthParams;
+use surftile::normals::NormalConvention;
 use surftile::prep::resample::DownsampleFilter;
 use surftile::render::{
     LayerOutputs, MaskIds, checked_size, render_imperfect_with_ids, render_to_file,
@@ -389,6 +390,14 @@ enum Command {
         /// a notice.
         #[arg(long)]
         gpu: bool,
+        /// Also write the region's tangent-space normal map (from the heights and the
+        /// physical spacing): 16-bit RGB .png, or float RGB .exr.
+        #[arg(long, value_name = "OUT.png|OUT.exr")]
+        normal_map: Option<PathBuf>,
+        /// The normal map's green channel: gl (+Y up the image: Blender, Unity,
+        /// Godot) or dx (+Y down: Unreal).
+        #[arg(long, value_enum, default_value_t = NormalConvention::Gl)]
+        normal_convention: NormalConvention,
     },
     /// Render a region of a face-milled surface (seed 000 §4) from a TOML configuration
     /// or a preset name (e.g. parallel-d4-ae05) to .png, .tif or .npy; heights in µm.
@@ -1007,6 +1016,47 @@ fn convert_command(input: &Path, output: &Path, o: &ConvertOptions) -> Result<()
     Ok(())
 }
 
+/// Writes the tangent-space normal map of `region` of `surface` to `path`: the region
+/// filled again with a border of [`surftile::normals::NORMAL_BORDER`] samples (the same
+/// sample positions, so the normals see the heights `render` wrote), slopes over the
+/// physical spacing (`spacing_um` × step, or the step in pixels where the source has no
+/// spacing).
+fn write_normal_map(
+    surface: &dyn Surface,
+    region: &surftile::Region,
+    spacing_um: Option<f64>,
+    convention: NormalConvention,
+    path: &Path,
+) -> Result<()> {
+    if surface.channels() != 1 {
+        return Err(Error::param(
+            "normal-map",
+            format!("a source of {} channels", surface.channels()),
+            "a height source (one channel)",
+        ));
+    }
+    let b = surftile::normals::NORMAL_BORDER;
+    let padded = surftile::Region {
+        col0: region.col0 - b as i64,
+        row0: region.row0 - b as i64,
+        width: region.width + 2 * b,
+        height: region.height + 2 * b,
+        ..*region
+    };
+    surftile::io::check_png_size(padded.width, padded.height)?;
+    let n = padded
+        .width
+        .checked_mul(padded.height)
+        .filter(|&n| n <= surftile::render::MAX_RENDER_SAMPLES / 4)
+        .ok_or_else(|| Error::Limits(format!("a {}×{} normal map", region.width, region.height)))?;
+    let mut heights = vec![0.0f32; n];
+    surface.fill(&padded, &mut heights)?;
+    let heights = surftile::Raster::from_vec(padded.width, padded.height, 1, heights)?;
+    let spacing = spacing_um.unwrap_or(1.0) * region.step;
+    let normals = surftile::normals::normal_map(&heights, spacing, convention)?;
+    surftile::io::write_normals(path, &normals)
+}
+
 fn raw_options(raw_shape: &Option<String>) -> Result<ReadOptions> {
     Ok(ReadOptions {
         raw_shape: raw_shape.as_deref().map(parse_shape).transpose()?,
@@ -1274,9 +1324,32 @@ fn run(command: Command) -> Result<()> {
             colour,
             defects,
             gpu,
+            normal_map,
+            normal_convention,
         } => {
             let region = window.region(step)?;
             check_output(&out)?;
+            if let Some(path) = &normal_map {
+                check_output(path)?;
+                surftile::io::Staged::distinct(&[("out", &out), ("normal-map", path)])?;
+                if !matches!(
+                    surftile::io::Format::from_path(path)?,
+                    surftile::io::Format::Png | surftile::io::Format::Exr
+                ) {
+                    return Err(Error::param(
+                        "normal-map",
+                        path.display(),
+                        "a .png (16-bit) or .exr (float) file",
+                    ));
+                }
+                if imperfect.is_some() {
+                    return Err(Error::param(
+                        "normal-map",
+                        "given with --imperfect",
+                        "a source without an imperfection layer (the layer's normals are not exported yet)",
+                    ));
+                }
+            }
             let outputs = LayerOutputs {
                 mask: mask.as_deref(),
                 tendency: tendency.as_deref(),
@@ -1373,6 +1446,16 @@ fn run(command: Command) -> Result<()> {
                 mask.as_deref().map(|m| (m, &defect_ids as MaskIds)),
                 &mut progress_reporter("render"),
             )?;
+            if let Some(path) = &normal_map {
+                write_normal_map(
+                    surface.as_ref(),
+                    &region,
+                    spec.spacing_um(),
+                    normal_convention,
+                    path,
+                )?;
+                eprintln!("render: wrote the normal map {}", path.display());
+            }
             eprintln!(
                 "render: wrote {} ({}×{} samples) in {:.2} s",
                 out.display(),

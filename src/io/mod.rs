@@ -17,6 +17,7 @@
 mod al3d;
 mod bytes;
 mod di;
+mod exr;
 mod metropro;
 mod npy;
 mod opd;
@@ -299,6 +300,8 @@ pub enum Format {
     MetroPro,
     /// `.sdf`: ISO 25178-71 surface data file (ASCII)
     Sdf,
+    /// `.exr`: OpenEXR, 32-bit float
+    Exr,
 }
 
 impl Format {
@@ -323,6 +326,7 @@ impl Format {
             e if e.len() == 3 && e.bytes().all(|b| b.is_ascii_digit()) => Ok(Format::Di),
             "dat" => Ok(Format::MetroPro),
             "sdf" => Ok(Format::Sdf),
+            "exr" => Ok(Format::Exr),
             _ => Err(Error::Unsupported(format!(
                 "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy, .x3p, \
                  .raw/.f32, or an instrument file (.al3d, .plu, .sur, .opd, .di, .dat, .sdf)",
@@ -343,6 +347,8 @@ impl Format {
             Some(Format::Npy)
         } else if starts(b"PK\x03\x04") {
             Some(Format::X3p)
+        } else if starts(b"\x76\x2f\x31\x01") {
+            Some(Format::Exr)
         } else if starts(b"AliconaImaging") {
             Some(Format::Al3d)
         } else if starts(b"DIGITAL SURF") || starts(b"DSCOMPRESSED") {
@@ -368,7 +374,10 @@ impl Format {
 
     /// Whether the format can hold missing points (NaN) when written.
     fn holds_missing(self) -> bool {
-        matches!(self, Format::Npy | Format::Tiff | Format::X3p | Format::Raw)
+        matches!(
+            self,
+            Format::Npy | Format::Tiff | Format::X3p | Format::Raw | Format::Exr
+        )
     }
 }
 
@@ -421,6 +430,7 @@ pub fn read_image_bytes(
         Format::Di => di::read(bytes, what)?,
         Format::MetroPro => metropro::read(bytes, what)?,
         Format::Sdf => sdf::read(bytes, what)?,
+        Format::Exr => exr::read(bytes, what)?,
         Format::Raw => {
             let shape = options.raw_shape.ok_or_else(|| {
                 Error::param("raw-shape", "none", "WxH or WxHxC for a raw f32 file")
@@ -442,7 +452,7 @@ pub fn read_image_bytes(
     // a height, so it is missing, as the formats' own invalid markers are.
     if !matches!(
         format,
-        Format::Png | Format::Tiff | Format::Npy | Format::Raw
+        Format::Png | Format::Tiff | Format::Npy | Format::Raw | Format::Exr
     ) {
         for v in &mut image.raster.data {
             if v.is_infinite() {
@@ -485,7 +495,7 @@ pub fn write_heights_with(path: &Path, raster: &Raster, meta: &WriteMeta) -> Res
     let format = Format::from_path(path)?;
     if !matches!(
         format,
-        Format::Png | Format::Tiff | Format::Npy | Format::Raw | Format::X3p
+        Format::Png | Format::Tiff | Format::Npy | Format::Raw | Format::X3p | Format::Exr
     ) {
         return Err(Error::Unsupported(format!(
             "{}: surftile reads {format:?} files but does not write them; write .x3p, .npy, .tif or .png",
@@ -510,6 +520,7 @@ pub fn write_heights_with(path: &Path, raster: &Raster, meta: &WriteMeta) -> Res
         Format::Png => png::write16(w, raster, meta),
         Format::Tiff => tiff::write(w, raster, meta),
         Format::Npy => npy::write(w, raster),
+        Format::Exr => exr::write(w, raster, meta),
         Format::X3p => {
             // The generating command, as the X3P record's comment.
             let command: Vec<String> = std::env::args().collect();
@@ -523,6 +534,20 @@ pub fn write_heights_with(path: &Path, raster: &Raster, meta: &WriteMeta) -> Res
         }
         _ => Err(Error::Unsupported(format!("writing {format:?} files"))),
     })
+}
+
+/// Writes a normal map (three channels of unit-vector components) to `path`: a 16-bit
+/// RGB PNG with each component v as round((v + 1)/2 · 65535), or a float RGB `.exr`
+/// with the components as they are.
+pub fn write_normals(path: &Path, normals: &Raster) -> Result<()> {
+    match Format::from_path(path)? {
+        Format::Png => write_atomically(path, |w| png::write_signed_unit16(w, normals)),
+        Format::Exr => write_atomically(path, |w| exr::write(w, normals, &WriteMeta::um(None))),
+        other => Err(Error::Unsupported(format!(
+            "{}: a normal map as {other:?}; write .png (16-bit) or .exr (float)",
+            path.display()
+        ))),
+    }
 }
 
 /// A raster as the bytes of a float32 `.npy` file ((H, W) or (H, W, C), C order): what

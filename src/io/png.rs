@@ -144,6 +144,32 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, meta: &super::WriteMe
     )
 }
 
+/// 16-bit RGB PNG of values in [−1, 1] (unit normals), each mapped to
+/// round((v + 1) / 2 · 65535): what normal-map readers expect.
+pub(super) fn write_signed_unit16(w: &mut impl Write, raster: &Raster) -> Result<()> {
+    if raster.channels != 3 {
+        return Err(Error::Unsupported(format!(
+            "a {}-channel normal map (3 expected)",
+            raster.channels
+        )));
+    }
+    let row_len = raster.width * 3;
+    encode(
+        w,
+        raster.width,
+        raster.height,
+        (ColorType::Rgb, BitDepth::Sixteen),
+        None,
+        Compression::Balanced,
+        |y, bytes| {
+            for &v in &raster.data[y * row_len..(y + 1) * row_len] {
+                let level = (((v.clamp(-1.0, 1.0) as f64 + 1.0) / 2.0) * 65535.0).round() as u16;
+                bytes.extend_from_slice(&level.to_be_bytes());
+            }
+        },
+    )
+}
+
 /// Widest and tallest PNG written: libpng's default user limit
 /// (`PNG_USER_WIDTH_MAX`/`PNG_USER_HEIGHT_MAX`), beyond which libpng-based readers and
 /// most viewers refuse the file. It also bounds the encoder's row buffers.

@@ -1,0 +1,118 @@
+//! OpenEXR (through the `exr` crate): 32-bit float samples, one channel (`Y`) for
+//! heights, `R`, `G`, `B` (and `A`) for colour, ZIP-compressed scan lines, top row
+//! first. The spacing and height unit go into a `surftile` text attribute (the same
+//! JSON as PNG and TIFF); heights are written as they are, so a write → read round trip
+//! gives the same f32 bits. Read: the first layer's largest resolution level, any
+//! sample type (f16, f32, u32) as f32; `Y`, or `R`, `G`, `B` (`A` dropped), or a single
+//! channel of any name.
+
+use std::io::{Cursor, Seek, Write};
+
+use exr::prelude::*;
+
+use super::{HeightMeta, ImageFile, WriteMeta};
+use crate::error::{Error, Result};
+use crate::raster::Raster;
+
+/// The text attribute holding surftile's metadata.
+const META: &str = "surftile";
+
+pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
+    let bad = |m: String| Error::decode(what, m);
+    // The header first: sizes are checked before any pixel is decoded.
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
+        .map_err(|e| bad(format!("not a readable OpenEXR file: {e}")))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| bad("an OpenEXR file without a layer".into()))?;
+    let size = header.layer_size;
+    let channels = header.channels.list.len();
+    super::check_shape(what, size.width(), size.height(), channels.clamp(1, 4))?;
+    if header.deep {
+        return Err(bad(
+            "a deep OpenEXR image; surftile reads flat images".into()
+        ));
+    }
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| bad(format!("OpenEXR: {e}")))?;
+    let layer = &image.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let list = &layer.channel_data.list;
+    let find = |name: &str| list.iter().find(|c| c.name.eq(name));
+    let planes: Vec<&AnyChannel<FlatSamples>> = if let Some(y) = find("Y") {
+        vec![y]
+    } else if let (Some(r), Some(g), Some(b)) = (find("R"), find("G"), find("B")) {
+        vec![r, g, b]
+    } else if list.len() == 1 {
+        vec![&list[0]]
+    } else {
+        let names: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
+        return Err(bad(format!(
+            "OpenEXR channels {}; expected Y, or R, G and B, or a single channel",
+            names.join(", ")
+        )));
+    };
+    let c = planes.len();
+    let mut data = vec![0.0f32; w * h * c];
+    for (k, plane) in planes.iter().enumerate() {
+        for (i, v) in plane.sample_data.values_as_f32().enumerate().take(w * h) {
+            data[i * c + k] = v;
+        }
+    }
+    let mut out = ImageFile::new(Raster::from_vec(w, h, c, data)?, None);
+    if let Some(AttributeValue::Text(text)) = layer.attributes.other.get(&Text::from(META))
+        && let Ok(m) = serde_json::from_str::<HeightMeta>(&text.to_string())
+    {
+        m.apply(&mut out, what)?;
+    }
+    Ok(out)
+}
+
+pub(super) fn write<W: Write + Seek>(w: W, raster: &Raster, meta: &WriteMeta) -> Result<()> {
+    let err = |e: exr::error::Error| Error::decode("OpenEXR output", e.to_string());
+    let names: &[&str] = match raster.channels {
+        1 => &["Y"],
+        3 => &["R", "G", "B"],
+        4 => &["R", "G", "B", "A"],
+        c => {
+            return Err(Error::Unsupported(format!(
+                "writing a {c}-channel OpenEXR (1, 3 or 4 channels)"
+            )));
+        }
+    };
+    let c = raster.channels;
+    let channels = names
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let plane = raster.data.iter().skip(k).step_by(c).copied().collect();
+            AnyChannel::new(*name, FlatSamples::F32(plane))
+        })
+        .collect();
+    let mut attributes = LayerAttributes::default();
+    let json = serde_json::to_string(&HeightMeta::of(meta))
+        .map_err(|e| Error::decode("OpenEXR metadata", e.to_string()))?;
+    let text = Text::new_or_none(&json)
+        .ok_or_else(|| Error::decode("OpenEXR metadata", format!("{json} is not Latin-1 text")))?;
+    attributes
+        .other
+        .insert(Text::from(META), AttributeValue::Text(text));
+    let layer = Layer::new(
+        (raster.width, raster.height),
+        attributes,
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(channels),
+    );
+    Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_buffered(w)
+        .map_err(err)
+}
