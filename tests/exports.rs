@@ -204,3 +204,33 @@ fn render_writes_exr_and_normal_maps() {
         assert!(!dir.path().join(bad[1]).exists(), "{} was written", bad[1]);
     }
 }
+
+/// An EXR whose header claims a 20000² layer over a few kilobytes is refused in one
+/// line before any pixel is decoded.
+#[test]
+fn exr_claiming_a_huge_layer_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("small.exr");
+    let raster = Raster::from_vec(4, 3, 1, vec![0.5; 12]).unwrap();
+    write_heights_with(&path, &raster, &WriteMeta::um(Some(1.0))).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("a dataWindow attribute")
+        + key.len()
+        + 4;
+    // xMax and yMax of the box (xMin, yMin, xMax, yMax as i32).
+    bytes[at + 8..at + 12].copy_from_slice(&19_999i32.to_le_bytes());
+    bytes[at + 12..at + 16].copy_from_slice(&19_999i32.to_le_bytes());
+    let e = surftile::io::read_image_bytes(
+        &bytes,
+        surftile::io::Format::Exr,
+        "huge.exr",
+        &ReadOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("huge.exr") && !e.contains('\n'), "{e}");
+}

@@ -28,7 +28,17 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
         .ok_or_else(|| bad("an OpenEXR file without a layer".into()))?;
     let size = header.layer_size;
     let channels = header.channels.list.len();
-    super::check_shape(what, size.width(), size.height(), channels.clamp(1, 4))?;
+    // Every channel is decoded: the pixel budget of the other readers (2^25 pixels of
+    // at most 4 channels) bounds pixels × channels, however many channels there are.
+    let pixels = super::check_shape(what, size.width(), size.height(), 1)?;
+    if channels == 0 || pixels.saturating_mul(channels) > 4 * super::MAX_IMAGE_PIXELS {
+        return Err(Error::Limits(format!(
+            "{what}: an OpenEXR layer of {}×{} pixels and {channels} channels; at most {} samples (2^25 pixels of 4 channels)",
+            size.width(),
+            size.height(),
+            4 * super::MAX_IMAGE_PIXELS
+        )));
+    }
     if header.deep {
         return Err(bad(
             "a deep OpenEXR image; surftile reads flat images".into()
