@@ -10,8 +10,6 @@ pub mod resample;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 use level::level_plane;
-use missing::fill_missing;
-use missing::fill_missing as fill_missing_points;
 use resample::{DownsampleFilter, downsample};
 
 /// Largest magnitude a map's values may have (10³⁰): far beyond any height or colour,
@@ -161,18 +159,25 @@ pub fn scale_limited(
     if let Some(cutoff) = lfilter_px {
         r = filter::roughness(&r, cutoff)?;
     }
+    fill_or_refuse(&mut r, what, fill_missing)?;
+    Ok(r)
+}
+
+/// Fills the missing points (NaN) of `r` smoothly where `fill` says so, else refuses a
+/// map with any.
+fn fill_or_refuse(r: &mut Raster, what: &str, fill: bool) -> Result<()> {
     let missing = r.count_nan();
     if missing > 0 {
-        if !fill_missing {
+        if !fill {
             return Err(Error::MissingData {
                 what: what.to_string(),
                 count: missing,
                 total: r.data.len(),
             });
         }
-        fill_missing_points(&mut r, what)?;
+        missing::fill_missing(r, what)?;
     }
-    Ok(r)
+    Ok(())
 }
 
 /// The preprocessing steps and their options.
@@ -203,17 +208,7 @@ impl Prep {
     /// `raster` preprocessed; `what` names it in errors.
     pub fn apply(&self, raster: &Raster, what: &str) -> Result<Raster> {
         let mut r = raster.clone();
-        let missing = r.count_nan();
-        if missing > 0 {
-            if !self.fill_missing {
-                return Err(Error::MissingData {
-                    what: what.to_string(),
-                    count: missing,
-                    total: r.data.len(),
-                });
-            }
-            fill_missing(&mut r, what)?;
-        }
+        fill_or_refuse(&mut r, what, self.fill_missing)?;
         check_values(&r, what)?;
         self.leveling.apply(&mut r);
         if self.downsample == 1 {

@@ -147,6 +147,9 @@ pub fn compare_maps(
             options.fill_missing,
         )
     };
+    // Sizes first: scale-limiting keeps them, and filtering a map to refuse it is waste.
+    check_side(a, what_a)?;
+    check_side(b, what_b)?;
     let (ra, rb) = (height_channel(a, what_a, 0)?, height_channel(b, what_b, 1)?);
     let (full_a, full_b) = if a.channels == 1 && b.channels == 1 {
         (ra.clone(), rb.clone())
@@ -158,17 +161,6 @@ pub fn compare_maps(
         };
         (prep.apply(a, what_a)?, prep.apply(b, what_b)?)
     };
-    for (what, r) in [(what_a, &ra), (what_b, &rb)] {
-        if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
-            return Err(Error::TooSmall {
-                what: what.to_string(),
-                message: format!(
-                    "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE} (the PSD error's smallest window)",
-                    r.width, r.height
-                ),
-            });
-        }
-    }
     if ra.data.iter().all(|&v| v == ra.data[0]) {
         return Err(Error::Analysis {
             what: what_a.to_string(),
@@ -216,17 +208,23 @@ pub fn describe_map(
             "a height map (one channel) for its ISO 25178 parameters",
         ));
     }
-    if raster.width < MIN_STATS_SIDE || raster.height < MIN_STATS_SIDE {
-        return Err(Error::TooSmall {
+    check_side(raster, what)?;
+    let r = crate::prep::scale_limited(raster, what, form, lfilter_px, fill_missing)?;
+    Ok(height_stats(&r))
+}
+
+/// Refuses a map under [`MIN_STATS_SIDE`] on a side.
+fn check_side(r: &Raster, what: &str) -> crate::Result<()> {
+    if r.width < MIN_STATS_SIDE || r.height < MIN_STATS_SIDE {
+        return Err(crate::error::Error::TooSmall {
             what: what.to_string(),
             message: format!(
-                "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE}",
-                raster.width, raster.height
+                "{}×{} pixels; stats needs at least {MIN_STATS_SIDE}×{MIN_STATS_SIDE} (the PSD error's smallest window)",
+                r.width, r.height
             ),
         });
     }
-    let r = crate::prep::scale_limited(raster, what, form, lfilter_px, fill_missing)?;
-    Ok(height_stats(&r))
+    Ok(())
 }
 
 /// Compares exemplar `a` with synthesis `b`.
