@@ -45,6 +45,8 @@
 pub mod analysis;
 pub mod bake;
 pub mod bank;
+#[cfg(feature = "capi")]
+pub mod capi;
 pub mod dataset;
 pub mod defects;
 #[cfg(feature = "cli")]
