@@ -52,6 +52,7 @@ pub mod defects;
 #[cfg(feature = "cli")]
 pub mod demo;
 pub mod error;
+pub mod export;
 pub mod fft;
 pub mod front;
 #[cfg(feature = "gpu")]

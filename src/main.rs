@@ -12,6 +12,7 @@ use surftile::bake::rsgf::RsgfOptions;
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
 use surftile::demo::run_demo;
+use surftile::export::TileFormat;
 use surftile::io::{
     ImageFile, ReadOptions, Unit, WriteMeta, parse_shape, read_image, write_heights,
     write_heights_with,
@@ -509,6 +510,22 @@ enum Command {
         /// Pixel spacing of a milling source, in µm.
         #[arg(long, default_value_t = 6.1, allow_negative_numbers = true)]
         spacing: f64,
+    },
+    /// Write a toroidal (roller) or Wang (quilt) bank's tiles as float EXR or 16-bit PNG,
+    /// with layout.json (lattice, edge colours, the hash rule), for an engine that
+    /// places the tiles itself.
+    ExportTiles {
+        /// Bank file (toroidal or Wang rule).
+        bank: PathBuf,
+        /// Output directory: created, or an empty one; written whole or not at all.
+        #[arg(long)]
+        out: PathBuf,
+        /// Tile file format.
+        #[arg(long, value_enum, default_value_t = TileFormat::Exr)]
+        format: TileFormat,
+        /// Placement seed the layout's hash rule is written for (as `render --seed`).
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+        seed: u32,
     },
     /// ISO 25178 parameters of a height map (A alone), or quality figures of B (a
     /// synthesis) against A (an exemplar), on the scale-limited surface, as JSON.
@@ -1619,6 +1636,31 @@ fn run(command: Command) -> Result<()> {
             surface.sample(x, y, &mut v);
             let text: Vec<String> = v.iter().map(|v| format!("{v}")).collect();
             println!("{}", text.join(" "));
+            Ok(())
+        }
+        Command::ExportTiles {
+            bank,
+            out,
+            format,
+            seed,
+        } => {
+            let source = surftile::open(&bank)?;
+            let Some(b) = source.bank() else {
+                return Err(surftile::Error::Unsupported(format!(
+                    "export-tiles of {}: a {} source, not a bank; export-tiles takes toroidal (roller) and Wang (quilt) banks",
+                    bank.display(),
+                    source.kind().name()
+                )));
+            };
+            let set = surftile::export::export_tiles(b, seed, &out, format)?;
+            println!(
+                "wrote {} {} tiles of {}×{} px and layout.json to {}",
+                set.tiles,
+                set.rule,
+                set.size[0],
+                set.size[1],
+                out.display()
+            );
             Ok(())
         }
         Command::Info {

@@ -234,3 +234,326 @@ fn exr_claiming_a_huge_layer_is_refused() {
     .to_string();
     assert!(e.contains("huge.exr") && !e.contains('\n'), "{e}");
 }
+
+/// An engine's placement of exported tiles, written from `layout.json` alone (its
+/// formulas, reimplemented here, not surftile's code), with the tiles read by the `exr`
+/// crate directly.
+struct Engine {
+    a: i64,
+    b: i64,
+    c: i64,
+    by: String,
+    key: u32,
+    seed: u32,
+    k: u32,
+    rhomboid: [i64; 5],
+    tiles: Vec<Vec<f32>>,
+}
+
+impl Engine {
+    fn load(dir: &Path) -> Engine {
+        let text = std::fs::read_to_string(dir.join("layout.json")).unwrap();
+        let layout: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let int = |v: &serde_json::Value| v.as_i64().unwrap();
+        let lattice = &layout["lattice"];
+        let choice = &layout["choice"];
+        let tiles = layout["tiles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| {
+                let path = dir.join(t["file"].as_str().unwrap());
+                let image = exr::prelude::read_first_flat_layer_from_file(&path).unwrap();
+                let y = &image.layer_data.channel_data.list[0];
+                assert_eq!(y.name.to_string(), "Y");
+                y.sample_data.values_as_f32().collect()
+            })
+            .collect();
+        let uv = |n: &str, i: usize| choice.get(n).map_or(0, |v| int(&v[i]));
+        Engine {
+            a: int(&lattice["a"]),
+            b: int(&lattice["b"]),
+            c: int(&lattice["c"]),
+            by: choice["by"].as_str().unwrap().to_string(),
+            key: choice.get("key").map_or(0, |k| int(k) as u32),
+            seed: int(&choice["seed"]) as u32,
+            k: int(&choice["tiles"]) as u32,
+            rhomboid: [
+                uv("u", 0),
+                uv("u", 1),
+                uv("v", 0),
+                uv("v", 1),
+                choice.get("det").map_or(1, int),
+            ],
+            tiles,
+        }
+    }
+
+    fn fold(i: i64) -> u32 {
+        (i as u32) ^ ((i >> 32) as u32).wrapping_mul(0x9E37_79B9)
+    }
+
+    fn pick(h: u32, k: u32) -> u32 {
+        ((h >> 16) * k) >> 16
+    }
+
+    fn hash_tile(&self, i: i64, j: i64) -> u32 {
+        let mut h = Self::fold(i).wrapping_mul(0x9E37_79B1)
+            ^ Self::fold(j).wrapping_mul(0x85EB_CA77)
+            ^ self.key;
+        h ^= h >> 16;
+        h = h.wrapping_mul(0x7FEB_352D);
+        h ^= h >> 15;
+        h = h.wrapping_mul(0x846C_A68B);
+        h ^ (h >> 16)
+    }
+
+    fn pcg4d(v: [u32; 4]) -> [u32; 4] {
+        let [mut x, mut y, mut z, mut w] =
+            v.map(|v| v.wrapping_mul(1_664_525).wrapping_add(1_013_904_223));
+        for round in 0..2 {
+            x = x.wrapping_add(y.wrapping_mul(w));
+            y = y.wrapping_add(z.wrapping_mul(x));
+            z = z.wrapping_add(x.wrapping_mul(y));
+            w = w.wrapping_add(y.wrapping_mul(z));
+            if round == 0 {
+                [x, y, z, w] = [x ^ (x >> 16), y ^ (y >> 16), z ^ (z >> 16), w ^ (w >> 16)];
+            }
+        }
+        [x, y, z, w]
+    }
+
+    /// The texel at integer (x, y).
+    fn texel(&self, x: i64, y: i64) -> f32 {
+        let j = y.div_euclid(self.c);
+        let i = (x - j * self.b).div_euclid(self.a);
+        let (lx, ly) = (x - j * self.b - i * self.a, y - j * self.c);
+        let tile = match self.by.as_str() {
+            "single" => 0,
+            "cell" => Self::pick(self.hash_tile(i, j), self.k),
+            "rhomboid" => {
+                let [u0, u1, v0, v1, det] = self.rhomboid;
+                let s = (v1 * x - v0 * y).div_euclid(det);
+                let t = (u0 * y - u1 * x).div_euclid(det);
+                Self::pick(self.hash_tile(s, t), self.k)
+            }
+            "wang" => {
+                let kc = (self.k as f64).powf(0.25).round() as u32;
+                let colour = |i: i64, j: i64, stream: u32| {
+                    let h = Self::pcg4d([self.seed, Self::fold(i), Self::fold(j), stream]);
+                    Self::pick(h[0], kc)
+                };
+                let (x0, x1) = (colour(i, j, 1), colour(i + 1, j, 1));
+                let (y0, y1) = (colour(i, j, 2), colour(i, j + 1, 2));
+                ((x0 * kc + x1) * kc + y0) * kc + y1
+            }
+            other => panic!("unknown choice {other}"),
+        };
+        self.tiles[tile as usize][(ly * self.a + lx) as usize]
+    }
+
+    /// Bilinear at (x, y), as layout.json's "sampling" says.
+    fn sample(&self, x: f64, y: f64) -> f32 {
+        let (xf, yf) = (x.floor(), y.floor());
+        let (xi, yi) = (xf as i64, yf as i64);
+        let (fx, fy) = ((x - xf) as f32, (y - yf) as f32);
+        let (t00, t10) = (self.texel(xi, yi), self.texel(xi + 1, yi));
+        let (t01, t11) = (self.texel(xi, yi + 1), self.texel(xi + 1, yi + 1));
+        let top = t00 + (t10 - t00) * fx;
+        let bottom = t01 + (t11 - t01) * fx;
+        -0.0 + (top + (bottom - top) * fy)
+    }
+}
+
+/// `export-tiles` of a rectangular roller bank, an oblique one (rhomboid choice) and a
+/// Wang bank: an engine placing the tiles from layout.json alone reproduces `render`'s
+/// pixels bit for bit at integer and fractional origins 5·10⁷ px away; the tiles agree
+/// wherever they meet (any toroidal tile beside any other, Wang tiles on a shared
+/// colour), so the engine's own placements are seamless too; the PNG export decodes to
+/// the EXR values within half a level.
+#[test]
+fn exported_tiles_placed_from_the_json_reproduce_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let pattern = surftile::lattice::periodic_pattern(200, 160, (40, 0), (13, 29));
+    surftile::io::write_heights(&d.join("grid.npy"), &pattern, None).unwrap();
+    let di6 = common::repo("tiles/di-6.npy");
+    let di6 = di6.to_str().unwrap();
+    let banks: [(&str, &[&str]); 3] = [
+        ("rect", &[di6, "--method", "roller", "--tiles", "4"]),
+        (
+            "oblique",
+            &[
+                "grid.npy",
+                "--method",
+                "roller",
+                "--tiles",
+                "3",
+                "--lattice",
+                "40,0;13,29",
+            ],
+        ),
+        ("wang", &[di6, "--method", "quilt", "--colours", "2"]),
+    ];
+    for (name, bake) in banks {
+        let bank = format!("{name}.bank");
+        let mut args = vec!["bake"];
+        args.extend(bake);
+        args.extend(["--out", bank.as_str()]);
+        let (code, err) = surftile(d, &args);
+        assert_eq!(code, 0, "{name}: {err}");
+        let out = format!("{name}-tiles");
+        let (code, err) = surftile(d, &["export-tiles", &bank, "--out", &out, "--seed", "5"]);
+        assert_eq!(code, 0, "{name}: {err}");
+        let engine = Engine::load(&d.join(&out));
+        let expected_by = ["cell", "rhomboid", "wang"][["rect", "oblique", "wang"]
+            .iter()
+            .position(|n| *n == name)
+            .unwrap()];
+        assert_eq!(engine.by, expected_by, "{name}");
+
+        for (x, y) in [(-50_000_000.0, 1234.0), (-49_999_937.25, -77.5)] {
+            let (xs, ys) = (format!("{x}"), format!("{y}"));
+            let png = format!("{name}.npy");
+            let args = [
+                "render", &bank, "--seed", "5", "--x", &xs, "--y", &ys, "--w", "211", "--h", "150",
+                "--out", &png,
+            ];
+            let (code, err) = surftile(d, &args);
+            assert_eq!(code, 0, "{name}: {err}");
+            let render = read_image(&d.join(&png), &ReadOptions::default())
+                .unwrap()
+                .raster;
+            let mut differ = 0;
+            for row in 0..render.height {
+                for col in 0..render.width {
+                    let e = engine.sample(x + col as f64, y + row as f64);
+                    differ += (e.to_bits() != render.get(col, row, 0).to_bits()) as usize;
+                }
+            }
+            assert_eq!(differ, 0, "{name} at ({x}, {y}): {differ} pixels differ");
+        }
+
+        // Seamless in any arrangement: borders shared as the rule says.
+        let (a, c) = (engine.a as usize, engine.c as usize);
+        let col = |t: usize, x: usize| -> Vec<u32> {
+            (0..c)
+                .map(|y| engine.tiles[t][y * a + x].to_bits())
+                .collect()
+        };
+        let row = |t: usize, y: usize| -> Vec<u32> {
+            (0..a)
+                .map(|x| engine.tiles[t][y * a + x].to_bits())
+                .collect()
+        };
+        let n = engine.tiles.len();
+        let kc = (n as f64).powf(0.25).round() as usize;
+        // Wang tile index ((x0·K + x1)·K + y0)·K + y1: edge p is digit 3 − p.
+        let edge = |t: usize, p: u32| (t / kc.pow(3 - p)) % kc;
+        for t in 0..n {
+            for u in 0..n {
+                let same = |p: u32| match name {
+                    "wang" => edge(t, p) == edge(u, p),
+                    "rect" => true,
+                    _ => false, // oblique: the tiles differ inside their rhomboids
+                };
+                let what = |side: &str| format!("{name}: tiles {t} and {u}, {side}");
+                if same(0) {
+                    assert_eq!(col(t, 0), col(u, 0), "{}", what("first column"));
+                }
+                if same(1) {
+                    assert_eq!(col(t, a - 1), col(u, a - 1), "{}", what("last column"));
+                }
+                if same(2) {
+                    assert_eq!(row(t, 0), row(u, 0), "{}", what("first row"));
+                }
+                if same(3) {
+                    assert_eq!(row(t, c - 1), row(u, c - 1), "{}", what("last row"));
+                }
+            }
+        }
+    }
+}
+
+/// `export-tiles` refuses, in one line and writing nothing: a bank of another rule
+/// (naming those it takes), a source that is not a bank, an output path that is a file
+/// or a directory with files, and an unknown `--format`. The PNG export decodes with
+/// layout.json's offset and scale to the EXR tiles within half a level (0.51).
+#[test]
+fn export_tiles_refuses_bad_input_and_its_png_decodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let di6 = common::repo("tiles/di-6.npy");
+    let di6 = di6.to_str().unwrap();
+    for (bank, method) in [("blend.bank", "rpn"), ("wang.bank", "quilt")] {
+        let (code, err) = surftile(d, &["bake", di6, "--method", method, "--out", bank]);
+        assert_eq!(code, 0, "{err}");
+    }
+    std::fs::write(d.join("a-file"), b"keep").unwrap();
+    std::fs::create_dir(d.join("full")).unwrap();
+    std::fs::write(d.join("full/x"), b"keep").unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["blend.bank", "--out", "t1"],
+            "takes toroidal (roller) and Wang (quilt) banks",
+        ),
+        (&["parallel-d4-ae05", "--out", "t2"], "not a bank"),
+        (&["wang.bank", "--out", "a-file"], "existing file"),
+        (&["wang.bank", "--out", "full"], "new or empty directory"),
+        (&["wang.bank", "--out", "t3", "--format", "bmp"], "exr, png"),
+        (&["missing.bank", "--out", "t4"], "missing.bank"),
+    ];
+    for (args, expect) in cases {
+        let mut all = vec!["export-tiles"];
+        all.extend(args);
+        let (code, err) = surftile(d, &all);
+        assert_ne!(code, 0, "{args:?}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read(d.join("a-file")).unwrap(), b"keep");
+    assert_eq!(std::fs::read_dir(d.join("full")).unwrap().count(), 1);
+    let mut left: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["a-file", "blend.bank", "full", "wang.bank"]);
+
+    // An empty directory is fine; PNG levels decode to the EXR values.
+    std::fs::create_dir(d.join("png")).unwrap();
+    for (out, format) in [("png", "png"), ("exr", "exr")] {
+        let (code, err) = surftile(
+            d,
+            &[
+                "export-tiles",
+                "wang.bank",
+                "--out",
+                out,
+                "--format",
+                format,
+            ],
+        );
+        assert_eq!(code, 0, "{err}");
+    }
+    let layout: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("png/layout.json")).unwrap()).unwrap();
+    let (offset, scale) = (
+        layout["png"]["offset"].as_f64().unwrap(),
+        layout["png"]["scale"].as_f64().unwrap(),
+    );
+    assert!(scale > 0.0);
+    let mut worst = 0.0f64;
+    for t in layout["tiles"].as_array().unwrap() {
+        let file = t["file"].as_str().unwrap();
+        let levels = surftile::io::read_unit(&d.join("png").join(file)).unwrap();
+        let exact =
+            Engine::load(&d.join("exr")).tiles[t["index"].as_u64().unwrap() as usize].clone();
+        for (l, e) in levels.data.iter().zip(&exact) {
+            let decoded = offset + scale * (*l as f64 * 65535.0).round();
+            worst = worst.max((decoded - *e as f64).abs() / scale);
+        }
+    }
+    // Half a level, plus the f32 rounding of v − offset before it is scaled.
+    assert!(worst <= 0.51, "PNG decodes within {worst} levels");
+}

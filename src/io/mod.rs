@@ -573,6 +573,28 @@ pub fn png8_bytes(width: usize, height: usize, channels: usize, pixels: &[u8]) -
     Ok(out)
 }
 
+/// A 16-bit PNG of `raster` (1 or 3 channels) scaled from the range [lo, hi], which
+/// must be finite, ordered and hold every sample: level = round((v − lo) / (hi − lo) ·
+/// 65535), recorded in the file's `surftile` chunk, so that several files (the tiles of
+/// a set) share one scale. Written atomically.
+pub fn write_png16_range(
+    path: &Path,
+    raster: &Raster,
+    meta: &WriteMeta,
+    lo: f32,
+    hi: f32,
+) -> Result<()> {
+    let inside = raster.data.iter().all(|v| (lo..=hi).contains(v));
+    if !(lo.is_finite() && hi.is_finite() && lo <= hi && inside) {
+        return Err(Error::param(
+            "PNG range",
+            format!("[{lo}, {hi}]"),
+            "a finite range holding every sample",
+        ));
+    }
+    write_atomically(path, |w| png::write16_in(w, raster, meta, lo, hi))
+}
+
 /// Writes a file through a temporary sibling that is renamed into place on success and
 /// removed on failure, so `path` is either complete or untouched.
 pub fn write_atomically(

@@ -108,15 +108,28 @@ fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
 /// 16-bit PNG of `raster` (1 or 3 channels), min–max scaled over all samples; the range
 /// and spacing go into a `surftile` tEXt chunk as JSON.
 pub(super) fn write16(w: &mut impl Write, raster: &Raster, meta: &super::WriteMeta) -> Result<()> {
+    let (lo, hi) = raster
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
+    write16_in(w, raster, meta, lo, hi)
+}
+
+/// [`write16`] scaled from the range [lo, hi] given (which must hold every sample), so
+/// that several files share one scale: level = round((v − lo) / (hi − lo) · 65535).
+pub(super) fn write16_in(
+    w: &mut impl Write,
+    raster: &Raster,
+    meta: &super::WriteMeta,
+    lo: f32,
+    hi: f32,
+) -> Result<()> {
     let color = match raster.channels {
         1 => ColorType::Grayscale,
         3 => ColorType::Rgb,
         c => return Err(Error::Unsupported(format!("writing a {c}-channel PNG"))),
     };
-    let (lo, hi) = raster
-        .data
-        .iter()
-        .fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
+    debug_assert!(raster.data.iter().all(|v| (lo..=hi).contains(v)));
     let span = (hi - lo) as f64;
     let meta = HeightMeta {
         height_min: Some(lo as f64),
