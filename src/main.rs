@@ -13,6 +13,7 @@ use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
 use surftile::demo::run_demo;
 use surftile::export::TileFormat;
+use surftile::export::shader::ShaderLang;
 use surftile::io::{
     ImageFile, ReadOptions, Unit, WriteMeta, parse_shape, read_image, write_heights,
     write_heights_with,
@@ -524,6 +525,22 @@ enum Command {
         #[arg(long, value_enum, default_value_t = TileFormat::Exr)]
         format: TileFormat,
         /// Placement seed the layout's hash rule is written for (as `render --seed`).
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+        seed: u32,
+    },
+    /// Write a toroidal (roller) or Wang (quilt) bank's sampler in a shading language
+    /// (translated by naga from the WGSL the GPU path compiles), its tiles as a storage
+    /// buffer, its parameters and a README, for renderers that sample in their own shaders.
+    ExportShader {
+        /// Bank file (toroidal or Wang rule).
+        bank: PathBuf,
+        /// Shading language.
+        #[arg(long, value_enum)]
+        lang: ShaderLang,
+        /// Output directory: created, or an empty one; written whole or not at all.
+        #[arg(long)]
+        out: PathBuf,
+        /// Placement seed written into the parameters (as `render --seed`).
         #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u32,
     },
@@ -1659,6 +1676,32 @@ fn run(command: Command) -> Result<()> {
                 set.rule,
                 set.size[0],
                 set.size[1],
+                out.display()
+            );
+            Ok(())
+        }
+        Command::ExportShader {
+            bank,
+            lang,
+            out,
+            seed,
+        } => {
+            let source = surftile::open(&bank)?;
+            let Some(b) = source.bank() else {
+                return Err(surftile::Error::Unsupported(format!(
+                    "export-shader of {}: a {} source, not a bank; export-shader takes toroidal (roller) and Wang (quilt) banks",
+                    bank.display(),
+                    source.kind().name()
+                )));
+            };
+            let done = surftile::export::shader::export_shader(b, seed, lang, &out)?;
+            println!(
+                "wrote {} ({} tiles of {}×{}), tiles.f32 ({} bytes), params.bin, layout.json and README.md to {}",
+                done.file,
+                done.params.tiles,
+                done.params.a,
+                done.params.c,
+                done.tile_bytes,
                 out.display()
             );
             Ok(())

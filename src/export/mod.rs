@@ -1,7 +1,10 @@
 //! Exports for renderers and game engines (issue 37): a bank's tile set with the layout
-//! and hash rule that place it ([`tiles`]), written as a directory that appears whole or
-//! not at all ([`StagedDir`]).
+//! and hash rule that place it ([`tiles`]), and (feature `gpu`) its sampler in the
+//! renderer's shading language (`shader`), each written as a directory that appears whole
+//! or not at all ([`StagedDir`]).
 
+#[cfg(feature = "gpu")]
+pub mod shader;
 pub mod tiles;
 
 use std::path::{Path, PathBuf};

@@ -10,6 +10,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("blend.wgsl", include_str!("../../shaders/blend.wgsl")),
     ("milling.wgsl", include_str!("../../shaders/milling.wgsl")),
     ("shade.wgsl", include_str!("../../shaders/shade.wgsl")),
+    ("sampler.wgsl", include_str!("../../shaders/sampler.wgsl")),
     (
         "hash_check.wgsl",
         include_str!("../../shaders/hash_check.wgsl"),
@@ -22,6 +23,7 @@ const MODULES: &[(&str, &[&str])] = &[
     ("blend", &["hash.wgsl", "blend.wgsl"]),
     ("milling", &["milling.wgsl"]),
     ("shade", &["shade.wgsl"]),
+    ("sampler", &["hash.wgsl", "sampler.wgsl"]),
     ("hash_check", &["hash.wgsl", "hash_check.wgsl"]),
 ];
 
