@@ -19,6 +19,12 @@ fn cell_add(i: vec2<u32>, d: i32) -> vec2<u32> {
     return vec2<u32>(lo, i.y + sign + carry);
 }
 
+// A signed 32-bit cell index as the (low, high) words of its i64: the cell index of
+// `i as i64` in Rust.
+fn cell_from_i32(v: i32) -> vec2<u32> {
+    return vec2<u32>(u32(v), select(0u, 0xFFFFFFFFu, v < 0));
+}
+
 // pcg4d (Jarzynski & Olano, JCGT 2020): 4 words in, 4 words out.
 fn pcg4d(v_in: vec4<u32>) -> vec4<u32> {
     var v = v_in * 1664525u + vec4<u32>(1013904223u);

@@ -35,19 +35,14 @@ struct SurftileParams {
 // K tiles of C rows of A texels of `channels` values, tile after tile.
 @group(0) @binding(1) var<storage, read> surftile_texels: array<f32>;
 
-// A signed 32-bit cell index as the (low, high) words of its i64 (hash.wgsl's cells).
-fn surftile_cell(v: i32) -> vec2<u32> {
-    return vec2<u32>(u32(v), select(0u, 0xFFFFFFFFu, v < 0));
-}
-
 // The tile shown at the texel (lx, ly) of HNF cell (i, j) (ToroidalSurface::tile_of).
 fn surftile_tile(i: i32, j: i32, lx: i32, ly: i32) -> u32 {
     let p = surftile_params;
     if p.colours > 0u {
         // hash::wang_tile: the colours of the cell's four edges pick the tile.
         let k = p.colours;
-        let ci = surftile_cell(i);
-        let cj = surftile_cell(j);
+        let ci = cell_from_i32(i);
+        let cj = cell_from_i32(j);
         let x0 = pick_tile(hash_cell(p.seed, ci, cj, 1u).x, k);
         let x1 = pick_tile(hash_cell(p.seed, cell_add(ci, 1), cj, 1u).x, k);
         let y0 = pick_tile(hash_cell(p.seed, ci, cj, 2u).x, k);
@@ -62,9 +57,9 @@ fn surftile_tile(i: i32, j: i32, lx: i32, ly: i32) -> u32 {
         // the rhomboid cell of (lx, ly) from it (exact: small numerators).
         let s = i * p.hnf_a.x + j * p.hnf_b.x + div_floor(p.v.y * lx - p.v.x * ly, p.det);
         let t = i * p.hnf_a.y + j * p.hnf_b.y + div_floor(p.u.x * ly - p.u.y * lx, p.det);
-        return pick_tile(hash_tile(p.seed, surftile_cell(s), surftile_cell(t)), p.tiles);
+        return pick_tile(hash_tile(p.seed, cell_from_i32(s), cell_from_i32(t)), p.tiles);
     }
-    return pick_tile(hash_tile(p.seed, surftile_cell(i), surftile_cell(j)), p.tiles);
+    return pick_tile(hash_tile(p.seed, cell_from_i32(i), cell_from_i32(j)), p.tiles);
 }
 
 // Offset in surftile_texels of the integer texel (x, y) (ToroidalSurface::texel_at).

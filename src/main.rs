@@ -528,11 +528,12 @@ enum Command {
         #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u32,
     },
-    /// Write a toroidal (roller) or Wang (quilt) bank's sampler in a shading language
-    /// (translated by naga from the WGSL the GPU path compiles), its tiles as a storage
-    /// buffer, its parameters and a README, for renderers that sample in their own shaders.
+    /// Write a blend (RPN, ADSN), toroidal (roller) or Wang (quilt) bank's sampler in a
+    /// shading language (translated by naga from the WGSL the GPU path compiles), its
+    /// tiles and tables as GPU buffers, its parameters and a README, for renderers that
+    /// sample in their own shaders.
     ExportShader {
-        /// Bank file (toroidal or Wang rule).
+        /// Bank file (blend, toroidal or Wang rule).
         bank: PathBuf,
         /// Shading language.
         #[arg(long, value_enum)]
@@ -1689,19 +1690,24 @@ fn run(command: Command) -> Result<()> {
             let source = surftile::open(&bank)?;
             let Some(b) = source.bank() else {
                 return Err(surftile::Error::Unsupported(format!(
-                    "export-shader of {}: a {} source, not a bank; export-shader takes toroidal (roller) and Wang (quilt) banks",
+                    "export-shader of {}: a {} source, not a bank; export-shader takes blend (rpn, adsn), toroidal (roller) and Wang (quilt) banks",
                     bank.display(),
                     source.kind().name()
                 )));
             };
             let done = surftile::export::shader::export_shader(b, seed, lang, &out)?;
+            let files: Vec<String> = done
+                .buffers
+                .iter()
+                .map(|(binding, file, bytes, _)| {
+                    format!("{file} (binding {binding}, {bytes} bytes)")
+                })
+                .collect();
             println!(
-                "wrote {} ({} tiles of {}×{}), tiles.f32 ({} bytes), params.bin, layout.json and README.md to {}",
+                "wrote {} ({} rule), {}, layout.json and README.md to {}",
                 done.file,
-                done.params.tiles,
-                done.params.a,
-                done.params.c,
-                done.tile_bytes,
+                done.rule,
+                files.join(", "),
                 out.display()
             );
             Ok(())

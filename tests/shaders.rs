@@ -112,6 +112,25 @@ fn shader_functions_keep_the_cpu_names() {
         ],
     );
     expect(
+        "sampler",
+        &[
+            "surftile_sample",
+            "surftile_height",
+            "surftile_texel",
+            "surftile_tile",
+        ],
+    );
+    expect(
+        "blend_sampler",
+        &[
+            "surftile_sample",
+            "surftile_height",
+            "vertex",
+            "eval_level",
+            "lut_eval",
+        ],
+    );
+    expect(
         "shade",
         &["normal_from_gradient", "half_vector", "reflectance"],
     );

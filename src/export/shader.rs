@@ -1,12 +1,18 @@
-//! `export-shader`: a toroidal (roller) or Wang (quilt) bank's point sampler in a
-//! renderer's shading language, with the bank's tiles and parameters laid out for the
-//! GPU, so that a renderer samples the infinite surface in its own shader without
-//! surftile at run time (Heitz–Neyret style).
+//! `export-shader`: a bank's point sampler in a renderer's shading language, with the
+//! bank's tiles, tables and parameters laid out for the GPU, so that a renderer samples
+//! the infinite surface in its own shader without surftile at run time (Heitz–Neyret
+//! style).
 //!
-//! The sampler is `shaders/sampler.wgsl` after `shaders/hash.wgsl`: the same hash
-//! functions the GPU fill compiles (one source of truth), translated by naga. Every
-//! output is validated by naga first; `tests/export_shader.rs` also checks the GLSL with
-//! glslangValidator and runs it, through naga's GLSL frontend, against the CPU fill.
+//! - Blend banks (RPN, ADSN): `shaders/blend_sampler.wgsl` after `hash.wgsl` and
+//!   `blend.wgsl`, calling the GPU fill's own `vertex`, `eval_level`, `bilinear` and
+//!   `lut_eval` with its uniform: one source of truth.
+//! - Toroidal (roller) and Wang (quilt) banks: `shaders/sampler.wgsl` after `hash.wgsl`
+//!   (the GPU fill's hashes; the toroidal fill's cell arithmetic works on host-split
+//!   axes, so the point functions are its twins).
+//!
+//! naga validates the module and translates it. `tests/export_shader.rs` also checks the
+//! GLSL with glslangValidator, and runs it through naga's GLSL frontend against the CPU
+//! fill.
 
 use std::path::Path;
 
@@ -85,19 +91,30 @@ pub struct SamplerParams {
 }
 
 /// The rules `export-shader` handles, for errors.
-const EXPORTABLE: &str = "toroidal (roller) and Wang (quilt) banks";
+const EXPORTABLE: &str = "blend (rpn, adsn), toroidal (roller) and Wang (quilt) banks";
 
-/// The sampler's parameters for `bank` placed with `seed`, refusing banks of other rules
-/// (naming those it takes) and sizes the sampler's i32 arithmetic cannot hold.
-pub fn sampler_params(bank: &Bank, seed: u32) -> Result<SamplerParams> {
-    let h = &bank.header;
-    if !matches!(h.rule(), Rule::Toroidal | Rule::Wang) {
+/// Refuses banks whose rule has no exported sampler, naming those that have one.
+fn check_rule(bank: &Bank) -> Result<()> {
+    let rule = bank.header.rule();
+    if !matches!(rule, Rule::Toroidal | Rule::Wang | Rule::Blend) {
         return Err(Error::Unsupported(format!(
-            "export-shader of a {} bank: its sampler is not exported yet; export-shader takes {EXPORTABLE}",
-            h.rule()
+            "export-shader of a {rule} bank: its sampler is not exported yet; export-shader takes {EXPORTABLE}"
         )));
     }
-    bank.validate("given to export-shader")?;
+    bank.validate("given to export-shader")
+}
+
+/// The toroidal and Wang sampler's parameters for `bank` placed with `seed`, refusing
+/// banks of other rules (naming those it takes) and sizes the sampler's i32 arithmetic
+/// cannot hold.
+pub fn sampler_params(bank: &Bank, seed: u32) -> Result<SamplerParams> {
+    let h = &bank.header;
+    check_rule(bank)?;
+    if h.rule() == Rule::Blend {
+        return Err(Error::Unsupported(
+            "sampler_params of a blend bank: its sampler takes blend.wgsl's BlendParams".into(),
+        ));
+    }
     if !(1..=4).contains(&h.channels) {
         return Err(Error::Unsupported(format!(
             "export-shader of a {}-channel bank; expected 1 to 4 channels",
@@ -154,14 +171,20 @@ pub fn sampler_params(bank: &Bank, seed: u32) -> Result<SamplerParams> {
     Ok(p)
 }
 
-/// The sampler module's WGSL: the shared hashes, then the sampler.
-pub fn sampler_wgsl() -> String {
-    crate::gpu::module_source("sampler")
+/// The WGSL of the sampler module for a bank of `rule` (`sampler` for toroidal and Wang
+/// banks, `blend_sampler` for blend banks).
+pub fn sampler_wgsl(rule: Rule) -> String {
+    crate::gpu::module_source(if rule == Rule::Blend {
+        "blend_sampler"
+    } else {
+        "sampler"
+    })
 }
 
-/// The sampler translated into `lang` by naga, after naga validated the module.
-pub fn translate(lang: ShaderLang) -> Result<String> {
-    let source = sampler_wgsl();
+/// The sampler for a bank of `rule` translated into `lang` by naga, after naga validated
+/// the module.
+pub fn translate(rule: Rule, lang: ShaderLang) -> Result<String> {
+    let source = sampler_wgsl(rule);
     let bug = |stage: &str, e: String| {
         Error::Gpu(format!(
             "the sampler's {} translation failed at {stage} (a bug in surftile): {}",
@@ -183,7 +206,7 @@ pub fn translate(lang: ShaderLang) -> Result<String> {
         ShaderLang::Wgsl => source,
         ShaderLang::Glsl => {
             let mut binding_map = naga::back::glsl::BindingMap::default();
-            for binding in 0..4 {
+            for binding in 0..8 {
                 binding_map.insert(naga::ResourceBinding { group: 0, binding }, binding as u8);
             }
             let options = naga::back::glsl::Options {
@@ -234,20 +257,116 @@ pub fn translate(lang: ShaderLang) -> Result<String> {
 /// What [`export_shader`] wrote.
 #[derive(Clone, Debug)]
 pub struct ShaderExport {
-    /// The sampler's parameters.
-    pub params: SamplerParams,
+    /// The bank's rule.
+    pub rule: Rule,
     /// The sampler's file name in the directory.
     pub file: &'static str,
-    /// Bytes of `tiles.f32`.
-    pub tile_bytes: usize,
+    /// The data files, by binding: (binding, file, bytes, uniform or storage).
+    pub buffers: Vec<(u32, &'static str, usize, &'static str)>,
+    /// The binding of the example entry point's region uniform.
+    pub region_binding: u32,
+    /// The binding of the example entry point's output buffer.
+    pub out_binding: u32,
 }
 
-/// Writes into the new directory `dir`, all or nothing: the sampler in `lang`, the
-/// level-0 tiles as `tiles.f32` (the storage buffer, little-endian f32), the uniform as
-/// `params.bin`, both described in `layout.json`, and a README with the bindings.
+/// One buffer the sampler reads.
+struct Buffer {
+    binding: u32,
+    file: &'static str,
+    uniform: bool,
+    what: &'static str,
+    bytes: Vec<u8>,
+}
+
+/// The buffers and example bindings of `bank`'s sampler placed with `seed`.
+fn plan(bank: &Bank, seed: u32) -> Result<(Vec<Buffer>, u32, u32)> {
+    check_rule(bank)?;
+    let tiles = Buffer {
+        binding: 1,
+        file: "tiles.f32",
+        uniform: false,
+        what: "the level-0 tiles: tiles × rows × columns × channels, little-endian f32",
+        bytes: bank.texels[0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect(),
+    };
+    if bank.header.rule() != Rule::Blend {
+        let params = sampler_params(bank, seed)?;
+        let params = Buffer {
+            binding: 0,
+            file: "params.bin",
+            uniform: true,
+            what: "SurftileParams (64 bytes): a, b, c, tiles, channels, seed, det, colours (4 bytes each), u, v, hnf_a, hnf_b (2 × i32 each)",
+            bytes: bytemuck::bytes_of(&params).to_vec(),
+        };
+        return Ok((vec![params, tiles], 2, 3));
+    }
+    let surface = crate::stream::BlendSurface::new(bank, seed)?;
+    if bank.texels[0].len() > u32::MAX as usize {
+        return Err(Error::Limits(
+            "export-shader of a blend bank of more than 2^32 texels".into(),
+        ));
+    }
+    let params = Buffer {
+        binding: 0,
+        file: "params.bin",
+        uniform: true,
+        what: "blend.wgsl's BlendParams (208 bytes), level 0 in slot 0, region fields zero",
+        bytes: crate::gpu::blend_sampler_params(&surface)?,
+    };
+    let luts = Buffer {
+        binding: 5,
+        file: "luts.f32",
+        uniform: false,
+        what: "the level-0 T⁻¹ tables, per channel lut_size (value, next − value) pairs of f32",
+        bytes: surface.levels[0]
+            .lut
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect(),
+    };
+    let (a, b, c) = (surface.skew_a, surface.skew_b, surface.skew_c);
+    let mut skew: Vec<f32> = Vec::with_capacity(12);
+    for k in [a, -b, c] {
+        skew.extend(chunks(k));
+    }
+    let skew = Buffer {
+        binding: 6,
+        file: "skew.bin",
+        uniform: true,
+        what: "SurftileSkew (48 bytes): a = 1/E, −b = −1/(√3·E), c = 2/(√3·E), each as four f32 chunks of 13 bits",
+        bytes: bytemuck::cast_slice(&skew).to_vec(),
+    };
+    Ok((vec![params, tiles, luts, skew], 7, 4))
+}
+
+/// `k` as four f32 of at most 13 significant bits whose sum is `k` to 52 bits, so that
+/// a 10-bit integer times a chunk is exact in f32 (shaders/blend_sampler.wgsl).
+fn chunks(k: f64) -> [f32; 4] {
+    let mut rest = k;
+    let mut out = [0.0f32; 4];
+    for chunk in &mut out {
+        if rest == 0.0 {
+            break;
+        }
+        let scale = 2f64.powi(12 - rest.abs().log2().floor() as i32);
+        let q = (rest * scale).round() / scale;
+        *chunk = q as f32;
+        debug_assert_eq!(*chunk as f64, q);
+        rest -= q;
+    }
+    out
+}
+
+/// Writes into the new directory `dir`, all or nothing: the sampler in `lang`, its
+/// buffers (tiles, tables, parameters) as the files `layout.json` lists by binding, and a
+/// README with the bindings and a usage snippet.
 pub fn export_shader(bank: &Bank, seed: u32, lang: ShaderLang, dir: &Path) -> Result<ShaderExport> {
-    let params = sampler_params(bank, seed)?;
-    let code = translate(lang)?;
+    let (buffers, region_binding, out_binding) = plan(bank, seed)?;
+    let rule = bank.header.rule();
+    let code = translate(rule, lang)?;
     let staged = StagedDir::new(dir, "--out")?;
     let file = lang.file_name();
     let write = |name: &str, bytes: &[u8]| {
@@ -257,93 +376,124 @@ pub fn export_shader(bank: &Bank, seed: u32, lang: ShaderLang, dir: &Path) -> Re
         })
     };
     write(file, code.as_bytes())?;
-    let texels: Vec<u8> = bank.texels[0]
-        .iter()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
-    write("tiles.f32", &texels)?;
-    write("params.bin", bytemuck::bytes_of(&params))?;
+    for b in &buffers {
+        write(b.file, &b.bytes)?;
+    }
     let h = &bank.header;
+    let rule_name = match h.record {
+        Record::Wang { .. } => "wang",
+        _ if rule == Rule::Blend => "blend",
+        _ => "toroidal",
+    };
     let layout = json!({
         "format": "surftile-shader",
         "version": 1,
         "language": lang.name(),
         "file": file,
-        "rule": if params.colours > 0 { "wang" } else { "toroidal" },
+        "rule": rule_name,
+        "seed": seed,
+        "channels": h.channels,
         "spacing_um": h.spacing_um,
         "height_unit": h.height_unit,
-        "bindings": {
-            "0": "uniform SurftileParams: params.bin (64 bytes)",
-            "1": "storage buffer, read-only, array of f32: tiles.f32",
-            "2": "uniform SurftileRegion of the example entry point surftile_fill (origin i32×2, frac f32×2, width, height, 2 pads)",
-            "3": "storage buffer, read-write, array of f32: surftile_fill's output",
+        "buffers": buffers.iter().map(|b| json!({
+            "binding": b.binding,
+            "file": b.file,
+            "type": if b.uniform { "uniform" } else { "storage, read-only" },
+            "bytes": b.bytes.len(),
+            "what": b.what,
+        })).collect::<Vec<_>>(),
+        "example": {
+            "entry_point": "surftile_fill",
+            "region_binding": region_binding,
+            "region": "SurftileRegion (32 bytes): origin i32×2, frac f32×2, width, height, 2 pads",
+            "out_binding": out_binding,
+            "out": "storage, read-write, array of f32: width × height × channels, row-major",
         },
-        "params": {
-            "a": params.a, "b": params.b, "c": params.c, "tiles": params.tiles,
-            "channels": params.channels, "seed": params.seed, "det": params.det,
-            "colours": params.colours, "u": params.u, "v": params.v,
-            "hnf_a": params.hnf_a, "hnf_b": params.hnf_b,
-            "byte_offsets": "a 0, b 4, c 8, tiles 12, channels 16, seed 20, det 24, colours 28, u 32, v 40, hnf_a 48, hnf_b 56",
-        },
-        "tiles_f32": {
-            "bytes": texels.len(),
-            "layout": "tiles × c rows × a texels × channels, little-endian f32, tile after tile",
-        },
-        "position": "surftile_sample(ip, fp): integer texel ip (|ip| < 2^30) plus fraction fp in [0, 1); surface pixel (x, y) is ip = floor, fp = x - floor(x)",
+        "position": "surftile_sample(ip, fp) / surftile_height(ip, fp): integer texel ip (|ip| < 2^30) plus fraction fp in [0, 1); surface pixel (x, y) is ip = floor, fp = x - floor(x)",
     });
     let text = serde_json::to_string_pretty(&layout).expect("a JSON value prints");
     write("layout.json", text.as_bytes())?;
-    write("README.md", readme(lang, &params).as_bytes())?;
+    write(
+        "README.md",
+        readme(lang, rule_name, seed, &buffers, region_binding, out_binding).as_bytes(),
+    )?;
     staged.commit()?;
     Ok(ShaderExport {
-        params,
+        rule,
         file,
-        tile_bytes: texels.len(),
+        buffers: buffers
+            .iter()
+            .map(|b| {
+                let kind = if b.uniform { "uniform" } else { "storage" };
+                (b.binding, b.file, b.bytes.len(), kind)
+            })
+            .collect(),
+        region_binding,
+        out_binding,
     })
 }
 
 /// The README written beside the sampler.
-fn readme(lang: ShaderLang, p: &SamplerParams) -> String {
+fn readme(
+    lang: ShaderLang,
+    rule: &str,
+    seed: u32,
+    buffers: &[Buffer],
+    region_binding: u32,
+    out_binding: u32,
+) -> String {
     let file = lang.file_name();
     let (name, how) = match lang {
         ShaderLang::Wgsl => (
             "WGSL",
-            "Paste the functions (everything but `surftile_fill`) into your module, or use the \
-             file as is for a compute pass.",
+            "Paste the module (everything but the entry points) into yours, or use the file \
+             as is for a compute pass.",
         ),
         ShaderLang::Glsl => (
             "GLSL 4.50",
             "naga wrote the file as a compute shader around the example entry point; copy its \
-             uniform block, buffer block and functions (`surftile_sample`, `surftile_height` and \
-             what they call) into your shader. naga names the blocks' instances after their \
-             bindings (`_group_0_binding_0_cs`, …).",
+             blocks and functions (`surftile_sample`, `surftile_height` and what they call) \
+             into your shader. naga names the blocks' instances after their bindings \
+             (`_group_0_binding_0_cs`, …).",
         ),
         ShaderLang::Hlsl => (
             "HLSL (shader model 5.1)",
-            "SurftileParams is the constant buffer at register(b0), the tiles a ByteAddressBuffer \
-             at register(t1); naga's names for them are in the file.",
+            "Uniforms are constant buffers at register(bN), storage buffers \
+             ByteAddressBuffers at register(tN) or (uN), N the binding; naga's names are in \
+             the file.",
         ),
         ShaderLang::Msl => (
             "Metal Shading Language 2.0",
-            "The entry point takes the params and tiles as buffer arguments; call \
-             `surftile_sample` with them from your own kernels or fragment functions.",
+            "The entry points take the buffers as arguments; call `surftile_sample` with \
+             them from your own kernels or fragment functions.",
         ),
     };
+    let mut table = String::new();
+    for b in buffers {
+        let kind = if b.uniform {
+            "uniform"
+        } else {
+            "storage, read-only"
+        };
+        table.push_str(&format!(
+            "| {} | {kind}: {} | `{}` |\n",
+            b.binding, b.what, b.file
+        ));
+    }
     format!(
         "# surftile sampler ({name})
 
-`{file}` samples this bank's infinite surface: `surftile_sample(ip, fp)` returns every
-channel (vec4) and `surftile_height(ip, fp)` channel 0, at texel position ip + fp, ip an
-integer texel (|ip| < 2^30) and fp in [0, 1). Keep your own integer offset so that no f32
-holds a large coordinate. The values are surftile's CPU fill's at level 0 (full
-resolution), within float rounding; no mip levels are exported.
+`{file}` samples this bank's infinite surface ({rule} rule, seed {seed}):
+`surftile_sample(ip, fp)` returns every channel (vec4) and `surftile_height(ip, fp)`
+channel 0, at texel position ip + fp: ip an integer texel (|ip| < 2^30), fp in [0, 1).
+Keep your own integer offset so that no f32 holds a large coordinate. The values are
+surftile's CPU fill's at level 0 (full resolution), within float rounding; no mip
+levels are exported.
 
 | binding (group 0) | what | file |
 |---|---|---|
-| 0 | uniform `SurftileParams`, 64 bytes | `params.bin` |
-| 1 | storage buffer, read-only, `array<f32>` | `tiles.f32` ({tiles} tiles of {a}×{c}, {ch} channel(s)) |
-| 2 | uniform `SurftileRegion` (example entry point only) | |
-| 3 | storage buffer, read-write (example entry point only) | |
+{table}| {region_binding} | uniform `SurftileRegion` of the example entry point `surftile_fill` | |
+| {out_binding} | storage, read-write: `surftile_fill`'s output | |
 
 {how}
 
@@ -351,24 +501,12 @@ Usage, in a compute or fragment shader (WGSL shown; the other languages have the
 functions and arguments):
 
 ```wgsl
-let world = vec2<f32>(…);                      // your coordinate, in surface pixels
+let world = vec2<f32>(…);                       // your coordinate, in surface pixels
 let ip = tile_origin + vec2<i32>(floor(world)); // tile_origin: your integer offset
 let h = surftile_height(ip, fract(world));
 ```
 
-`layout.json` lists the parameters and byte offsets. Rule: {rule}, seed {seed}.
-",
-        tiles = p.tiles,
-        a = p.a,
-        c = p.c,
-        ch = p.channels,
-        rule = if p.colours > 0 {
-            "wang"
-        } else if p.det != 0 {
-            "toroidal, tiles chosen by rhomboid cell"
-        } else {
-            "toroidal"
-        },
-        seed = p.seed,
+`layout.json` lists the same, with byte sizes.
+"
     )
 }

@@ -568,6 +568,40 @@ impl BankGpu {
     }
 }
 
+/// The blend rule's uniform `BlendParams` for a point sampler (`shaders/blend_sampler.wgsl`,
+/// `export-shader`): level 0 in slot 0 at texel and table base 0, no second level, and
+/// the region fields zero.
+pub(crate) fn blend_sampler_params(s: &BlendSurface) -> Result<Vec<u8>> {
+    let lv = &s.levels[0];
+    let mut level = [BlendLevel::default(); 2];
+    level[0] = BlendLevel {
+        w: lv.w as u32,
+        h: (lv.hmask + 1) as u32,
+        tile_stride: u32::try_from(lv.tile_stride).map_err(|_| too_big("a tile"))?,
+        texel_base: 0,
+        lut_base: 0,
+        pad0: 0,
+        scale: lv.scale as f32,
+        centre: lv.centre as f32,
+        mean: lv.mean,
+        lut_scale: lv.lut_scale,
+    };
+    let params = BlendParams {
+        channels: s.channels as u32,
+        tiles: s.tiles,
+        seed: s.seed,
+        tile_shift: s.tile_shift,
+        lut_size: s.lut_size as u32,
+        lut_last: s.lut_last,
+        lut_centre: s.lut_centre,
+        mask_x: s.offset_mask_x as u32,
+        mask_y: s.offset_mask_y as u32,
+        level,
+        ..BlendParams::default()
+    };
+    Ok(bytemuck::bytes_of(&params).to_vec())
+}
+
 /// One input of [`gpu_hashes`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct HashInput {

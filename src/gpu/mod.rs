@@ -16,6 +16,7 @@ mod helpers;
 mod milling;
 mod shaders;
 
+pub(crate) use fill::blend_sampler_params;
 pub use fill::{GpuSurface, HashInput, HashOutput, gpu_hashes};
 pub(crate) use helpers::read_mapped;
 pub use shaders::{SHADER_FILES, composed_modules};

@@ -12,6 +12,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("shade.wgsl", include_str!("../../shaders/shade.wgsl")),
     ("sampler.wgsl", include_str!("../../shaders/sampler.wgsl")),
     (
+        "blend_sampler.wgsl",
+        include_str!("../../shaders/blend_sampler.wgsl"),
+    ),
+    (
         "hash_check.wgsl",
         include_str!("../../shaders/hash_check.wgsl"),
     ),
@@ -24,6 +28,10 @@ const MODULES: &[(&str, &[&str])] = &[
     ("milling", &["milling.wgsl"]),
     ("shade", &["shade.wgsl"]),
     ("sampler", &["hash.wgsl", "sampler.wgsl"]),
+    (
+        "blend_sampler",
+        &["hash.wgsl", "blend.wgsl", "blend_sampler.wgsl"],
+    ),
     ("hash_check", &["hash.wgsl", "hash_check.wgsl"]),
 ];
 
