@@ -6,7 +6,8 @@
 // Twin of src/stream/toroidal.rs at level 0 (Level::locate, ToroidalSurface::tile_of,
 // texel_at, bilinear) and of hash::wang_tile. A position is an integer texel ip and a
 // fraction fp in [0, 1), so that no f32 holds a large coordinate: a renderer keeps its
-// own integer offset (tile origins, a camera-relative origin). |ip| < 2^30.
+// own integer offset (tile origins, a camera-relative origin). |ip| < 2^30, or the
+// smaller max_coordinate that export-shader's layout.json gives for long, sheared cells.
 
 struct SurftileParams {
     // The Hermite normal form (A, 0), (B, C) of the lattice: tiles are A × C texels.

@@ -1225,6 +1225,23 @@ fn lattice_command(
     Ok(())
 }
 
+/// The bank behind `source` (opened from `path`), or an error saying that `command`
+/// takes `takes`, not a milling or model source.
+fn bank_of<'a>(
+    source: &'a surftile::Source,
+    path: &Path,
+    command: &str,
+    takes: &str,
+) -> Result<&'a surftile::bank::Bank> {
+    source.bank().ok_or_else(|| {
+        surftile::Error::Unsupported(format!(
+            "{command} of {}: a {} source, not a bank; {command} takes {takes}",
+            path.display(),
+            source.kind().name()
+        ))
+    })
+}
+
 fn run(command: Command) -> Result<()> {
     match command {
         Command::Bake {
@@ -1663,13 +1680,12 @@ fn run(command: Command) -> Result<()> {
             seed,
         } => {
             let source = surftile::open(&bank)?;
-            let Some(b) = source.bank() else {
-                return Err(surftile::Error::Unsupported(format!(
-                    "export-tiles of {}: a {} source, not a bank; export-tiles takes toroidal (roller) and Wang (quilt) banks",
-                    bank.display(),
-                    source.kind().name()
-                )));
-            };
+            let b = bank_of(
+                &source,
+                &bank,
+                "export-tiles",
+                "toroidal (roller) and Wang (quilt) banks",
+            )?;
             let set = surftile::export::export_tiles(b, seed, &out, format)?;
             println!(
                 "wrote {} {} tiles of {}×{} px and layout.json to {}",
@@ -1688,13 +1704,12 @@ fn run(command: Command) -> Result<()> {
             seed,
         } => {
             let source = surftile::open(&bank)?;
-            let Some(b) = source.bank() else {
-                return Err(surftile::Error::Unsupported(format!(
-                    "export-shader of {}: a {} source, not a bank; export-shader takes blend (rpn, adsn), toroidal (roller) and Wang (quilt) banks",
-                    bank.display(),
-                    source.kind().name()
-                )));
-            };
+            let b = bank_of(
+                &source,
+                &bank,
+                "export-shader",
+                "blend (rpn, adsn), toroidal (roller) and Wang (quilt) banks",
+            )?;
             let done = surftile::export::shader::export_shader(b, seed, lang, &out)?;
             let files: Vec<String> = done
                 .buffers

@@ -157,6 +157,8 @@ fn every_language_validates() {
             }
             let readme = std::fs::read_to_string(d.join(&out).join("README.md")).unwrap();
             assert!(readme.contains("binding") && readme.contains("surftile_height"));
+            // The GPU test samples at ±10⁹.
+            assert_eq!(layout["max_coordinate"], 1 << 30, "{what}");
             for b in layout["buffers"].as_array().unwrap() {
                 let bytes = std::fs::metadata(d.join(&out).join(b["file"].as_str().unwrap()))
                     .unwrap()

@@ -171,6 +171,29 @@ pub fn sampler_params(bank: &Bank, seed: u32) -> Result<SamplerParams> {
     Ok(p)
 }
 
+/// The largest |ip| (a power of two, at most 2^30) for which every intermediate of
+/// `shaders/sampler.wgsl` (cell, shifted x, rhomboid coordinates, the +1 neighbours)
+/// fits in an i32 for these parameters.
+pub fn max_coordinate(p: &SamplerParams) -> i64 {
+    let fits = |r: i64| {
+        let (a, b, c) = (p.a as i64, p.b.unsigned_abs() as i64, p.c as i64);
+        let j = r / c + 2;
+        let xs = r + 1 + j * b;
+        let i = xs / a + 2;
+        let rhomboid = |k: usize| {
+            i * (p.hnf_a[k].unsigned_abs() as i64) + j * (p.hnf_b[k].unsigned_abs() as i64) + 2
+        };
+        [j * b, xs, i, rhomboid(0), rhomboid(1)]
+            .iter()
+            .all(|&v| v < i32::MAX as i64)
+    };
+    let mut r = 1i64 << 30;
+    while r > 1 && !fits(r) {
+        r /= 2;
+    }
+    r
+}
+
 /// The WGSL of the sampler module for a bank of `rule` (`sampler` for toroidal and Wang
 /// banks, `blend_sampler` for blend banks).
 pub fn sampler_wgsl(rule: Rule) -> String {
@@ -278,8 +301,17 @@ struct Buffer {
     bytes: Vec<u8>,
 }
 
+/// What a sampler needs: its buffers, the example's region and output bindings, and
+/// the largest |ip| it takes.
+struct Plan {
+    buffers: Vec<Buffer>,
+    region_binding: u32,
+    out_binding: u32,
+    max_coordinate: i64,
+}
+
 /// The buffers and example bindings of `bank`'s sampler placed with `seed`.
-fn plan(bank: &Bank, seed: u32) -> Result<(Vec<Buffer>, u32, u32)> {
+fn plan(bank: &Bank, seed: u32) -> Result<Plan> {
     check_rule(bank)?;
     let tiles = Buffer {
         binding: 1,
@@ -293,6 +325,7 @@ fn plan(bank: &Bank, seed: u32) -> Result<(Vec<Buffer>, u32, u32)> {
     };
     if bank.header.rule() != Rule::Blend {
         let params = sampler_params(bank, seed)?;
+        let max_coordinate = max_coordinate(&params);
         let params = Buffer {
             binding: 0,
             file: "params.bin",
@@ -300,7 +333,12 @@ fn plan(bank: &Bank, seed: u32) -> Result<(Vec<Buffer>, u32, u32)> {
             what: "SurftileParams (64 bytes): a, b, c, tiles, channels, seed, det, colours (4 bytes each), u, v, hnf_a, hnf_b (2 × i32 each)",
             bytes: bytemuck::bytes_of(&params).to_vec(),
         };
-        return Ok((vec![params, tiles], 2, 3));
+        return Ok(Plan {
+            buffers: vec![params, tiles],
+            region_binding: 2,
+            out_binding: 3,
+            max_coordinate,
+        });
     }
     let surface = crate::stream::BlendSurface::new(bank, seed)?;
     if bank.texels[0].len() > u32::MAX as usize {
@@ -339,7 +377,14 @@ fn plan(bank: &Bank, seed: u32) -> Result<(Vec<Buffer>, u32, u32)> {
         what: "SurftileSkew (48 bytes): a = 1/E, −b = −1/(√3·E), c = 2/(√3·E), each as four f32 chunks of 13 bits",
         bytes: bytemuck::cast_slice(&skew).to_vec(),
     };
-    Ok((vec![params, tiles, luts, skew], 7, 4))
+    // blend_sampler.wgsl's chunks of ip take |ip| ≤ 2^30, and the skew's integer parts
+    // (|ip|·c, c ≤ 2/√3 for E ≥ 1) stay below 2^31.
+    Ok(Plan {
+        buffers: vec![params, tiles, luts, skew],
+        region_binding: 7,
+        out_binding: 4,
+        max_coordinate: 1 << 30,
+    })
 }
 
 /// `k` as four f32 of at most 13 significant bits whose sum is `k` to 52 bits, so that
@@ -364,7 +409,12 @@ fn chunks(k: f64) -> [f32; 4] {
 /// buffers (tiles, tables, parameters) as the files `layout.json` lists by binding, and a
 /// README with the bindings and a usage snippet.
 pub fn export_shader(bank: &Bank, seed: u32, lang: ShaderLang, dir: &Path) -> Result<ShaderExport> {
-    let (buffers, region_binding, out_binding) = plan(bank, seed)?;
+    let Plan {
+        buffers,
+        region_binding,
+        out_binding,
+        max_coordinate,
+    } = plan(bank, seed)?;
     let rule = bank.header.rule();
     let code = translate(rule, lang)?;
     let staged = StagedDir::new(dir, "--out")?;
@@ -409,13 +459,22 @@ pub fn export_shader(bank: &Bank, seed: u32, lang: ShaderLang, dir: &Path) -> Re
             "out_binding": out_binding,
             "out": "storage, read-write, array of f32: width × height × channels, row-major",
         },
-        "position": "surftile_sample(ip, fp) / surftile_height(ip, fp): integer texel ip (|ip| < 2^30) plus fraction fp in [0, 1); surface pixel (x, y) is ip = floor, fp = x - floor(x)",
+        "max_coordinate": max_coordinate,
+        "position": "surftile_sample(ip, fp) / surftile_height(ip, fp): integer texel ip (|ip| < max_coordinate) plus fraction fp in [0, 1); surface pixel (x, y) is ip = floor, fp = x - floor(x)",
     });
     let text = serde_json::to_string_pretty(&layout).expect("a JSON value prints");
     write("layout.json", text.as_bytes())?;
     write(
         "README.md",
-        readme(lang, rule_name, seed, &buffers, region_binding, out_binding).as_bytes(),
+        readme(
+            lang,
+            rule_name,
+            seed,
+            &buffers,
+            [region_binding, out_binding],
+            max_coordinate,
+        )
+        .as_bytes(),
     )?;
     staged.commit()?;
     Ok(ShaderExport {
@@ -439,8 +498,8 @@ fn readme(
     rule: &str,
     seed: u32,
     buffers: &[Buffer],
-    region_binding: u32,
-    out_binding: u32,
+    [region_binding, out_binding]: [u32; 2],
+    max_coordinate: i64,
 ) -> String {
     let file = lang.file_name();
     let (name, how) = match lang {
@@ -485,7 +544,7 @@ fn readme(
 
 `{file}` samples this bank's infinite surface ({rule} rule, seed {seed}):
 `surftile_sample(ip, fp)` returns every channel (vec4) and `surftile_height(ip, fp)`
-channel 0, at texel position ip + fp: ip an integer texel (|ip| < 2^30), fp in [0, 1).
+channel 0, at texel position ip + fp: ip an integer texel (|ip| < {max_coordinate}), fp in [0, 1).
 Keep your own integer offset so that no f32 holds a large coordinate. The values are
 surftile's CPU fill's at level 0 (full resolution), within float rounding; no mip
 levels are exported.
@@ -509,4 +568,55 @@ let h = surftile_height(ip, fract(world));
 `layout.json` lists the same, with byte sizes.
 "
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Chunks sum to the constant to 52 bits, each with at most 13 significant bits.
+    #[test]
+    fn chunks_are_exact_and_short() {
+        for k in [
+            1.0 / 128.0,
+            1.0 / (1.732_050_807_568_877_2 * 100.0),
+            -0.011_547,
+            1.154_7,
+        ] {
+            let c = chunks(k);
+            let sum: f64 = c.iter().map(|&v| v as f64).sum();
+            assert!((sum - k).abs() <= k.abs() * 2f64.powi(-51), "{k}: {sum}");
+            for v in c {
+                let bits = (v.to_bits() & 0x7F_FFFF).trailing_zeros();
+                assert!(
+                    v == 0.0 || bits >= 23 - 12,
+                    "{k}: chunk {v} has too many bits"
+                );
+            }
+        }
+    }
+
+    /// A long, sheared cell narrows the coordinate range; a square one keeps 2^30.
+    #[test]
+    fn max_coordinate_shrinks_for_sheared_cells() {
+        let p = |a, b, c| SamplerParams {
+            a,
+            b,
+            c,
+            tiles: 1,
+            channels: 1,
+            seed: 0,
+            det: 0,
+            colours: 0,
+            u: [0; 2],
+            v: [0; 2],
+            hnf_a: [0; 2],
+            hnf_b: [0; 2],
+        };
+        assert_eq!(max_coordinate(&p(256, 0, 256)), 1 << 30);
+        let thin = p(4000, 3999, 1);
+        let r = max_coordinate(&thin);
+        assert!(r < 1 << 20, "{r}");
+        assert!((r + 2) * 3999 < i32::MAX as i64);
+    }
 }
