@@ -68,6 +68,16 @@ fn pick_tile(h: u32, k: u32) -> u32 {
     return ((h >> 16u) * k) >> 16u;
 }
 
+// wang_tile (hash.rs): the Wang tile of cell (i, j) with k colours per edge direction,
+// from the hashed colours of its four edges: ((x0·k + x1)·k + y0)·k + y1.
+fn wang_tile(seed: u32, i: vec2<u32>, j: vec2<u32>, k: u32) -> u32 {
+    let x0 = pick_tile(hash_cell(seed, i, j, 1u).x, k);
+    let x1 = pick_tile(hash_cell(seed, cell_add(i, 1), j, 1u).x, k);
+    let y0 = pick_tile(hash_cell(seed, i, j, 2u).x, k);
+    let y1 = pick_tile(hash_cell(seed, i, cell_add(j, 1), 2u).x, k);
+    return ((x0 * k + x1) * k + y0) * k + y1;
+}
+
 // ⌊v / d⌋ for d > 0, rounding toward −∞ (WGSL's `/` truncates). Only non-negative
 // operands are divided: GLSL leaves `/` and `%` of negative integers undefined, and the
 // GL backend's translation gave wrong cells for negative v (oblique lattices on Mesa's

@@ -4,7 +4,8 @@
 // GLSL, HLSL or MSL, and writes the bank's tiles and these parameters beside it.
 //
 // Twin of src/stream/toroidal.rs at level 0 (Level::locate, ToroidalSurface::tile_of,
-// texel_at, bilinear) and of hash::wang_tile. A position is an integer texel ip and a
+// texel_at, bilinear); Wang banks pick their tile with hash.wgsl's wang_tile, as the
+// GPU fill does. A position is an integer texel ip and a
 // fraction fp in [0, 1), so that no f32 holds a large coordinate: a renderer keeps its
 // own integer offset (tile origins, a camera-relative origin). |ip| < 2^30, or the
 // smaller max_coordinate that export-shader's layout.json gives for long, sheared cells.
@@ -40,15 +41,7 @@ struct SurftileParams {
 fn surftile_tile(i: i32, j: i32, lx: i32, ly: i32) -> u32 {
     let p = surftile_params;
     if p.colours > 0u {
-        // hash::wang_tile: the colours of the cell's four edges pick the tile.
-        let k = p.colours;
-        let ci = cell_from_i32(i);
-        let cj = cell_from_i32(j);
-        let x0 = pick_tile(hash_cell(p.seed, ci, cj, 1u).x, k);
-        let x1 = pick_tile(hash_cell(p.seed, cell_add(ci, 1), cj, 1u).x, k);
-        let y0 = pick_tile(hash_cell(p.seed, ci, cj, 2u).x, k);
-        let y1 = pick_tile(hash_cell(p.seed, ci, cell_add(cj, 1), 2u).x, k);
-        return ((x0 * k + x1) * k + y0) * k + y1;
+        return wang_tile(p.seed, cell_from_i32(i), cell_from_i32(j), p.colours);
     }
     if p.tiles == 1u {
         return 0u;

@@ -3,7 +3,7 @@
 //
 // Cells are the HNF rectangles A × C of a level's lattice, each row shifted by B; cell
 // (i, j) shows tile pick_tile(hash_tile(seed, i, j), K), or for several tiles on an
-// oblique lattice the tile of its rhomboid cell (s, t).
+// oblique lattice the tile of its rhomboid cell (s, t), or for a Wang bank wang_tile.
 
 // One column or row of a region (src/gpu/fill.rs `TorAxis`). The host computes each
 // coordinate in f64 as the CPU fill does and passes it split: the texel's integer offset
@@ -60,7 +60,8 @@ struct TorParams {
     det: i32,
     // Weight of the second level (slot 1); 0 reads slot 0 only.
     t: f32,
-    pad0: u32,
+    // Wang banks: colours per edge direction (the cell's tile is wang_tile); 0 otherwise.
+    colours: u32,
     level: array<TorLevel, 2>,
 }
 
@@ -91,6 +92,9 @@ fn tile_of(l: u32, cell: vec2<i32>, col: TorAxis, row: TorAxis, ex: i32, ey: i32
     let lv = params.level[l];
     var i = cell_add(lv.i0, cell.x);
     var j = cell_add(lv.j0, cell.y);
+    if params.colours != 0u {
+        return wang_tile(params.seed, i, j, params.colours);
+    }
     if params.det != 0 {
         let rs = lv.rs0 + col.sr + row.sr + ex * lv.ds_x + ey * lv.ds_y;
         let rt = lv.rt0 + col.tr + row.tr + ex * lv.dt_x + ey * lv.dt_y;

@@ -201,6 +201,31 @@ fn toroidal_fills_match_the_cpu() {
     }
 }
 
+/// Wang (quilt) banks on the GPU: the toroidal fill with each cell's tile from
+/// `wang_tile` (shaders/hash.wgsl), 2 and 3 colours per edge, against the CPU.
+#[test]
+fn wang_fills_match_the_cpu() {
+    let Some(g) = gpu() else { return };
+    let exemplar =
+        surftile::io::read_image(&common::repo("tiles/di-6.npy"), &Default::default()).unwrap();
+    for colours in [2, 3] {
+        let bank = Baker::builder()
+            .method(Method::Quilt)
+            .colours(colours)
+            .build()
+            .unwrap()
+            .bake(&exemplar, "di-6", &mut |_| {})
+            .unwrap();
+        let (err, exact) = parity(&bank, 11, g);
+        eprintln!("wang, {colours} colours: {err:.2e}, integer regions exact: {exact}");
+        assert!(err <= 1e-5, "wang {colours}: max relative error {err:.2e}");
+        assert!(
+            exact,
+            "wang {colours}: integer step-1 texels differ from the CPU's"
+        );
+    }
+}
+
 /// Milling on the GPU against the CPU: both tool paths, every ring shape and every
 /// interaction, over the parity regions (steps above 1 average a footprint of up to
 /// 4 × 4 points, as the CPU does). Pixels at a ring's part border, where the model is

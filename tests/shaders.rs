@@ -84,6 +84,7 @@ fn shader_functions_keep_the_cpu_names() {
             "hash_vertex",
             "hash_cell",
             "pick_tile",
+            "wang_tile",
         ],
     );
     expect("toroidal", &["locate", "tile_of", "texel_at", "bilinear"]);

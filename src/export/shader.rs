@@ -7,8 +7,8 @@
 //!   `blend.wgsl`, calling the GPU fill's own `vertex`, `eval_level`, `bilinear` and
 //!   `lut_eval` with its uniform: one source of truth.
 //! - Toroidal (roller) and Wang (quilt) banks: `shaders/sampler.wgsl` after `hash.wgsl`
-//!   (the GPU fill's hashes; the toroidal fill's cell arithmetic works on host-split
-//!   axes, so the point functions are its twins).
+//!   (the GPU fill's hashes and its `wang_tile`; the toroidal fill's cell arithmetic works
+//!   on host-split axes, so the point functions are its twins).
 //!
 //! naga validates the module and translates it. `tests/export_shader.rs` also checks the
 //! GLSL with glslangValidator, and runs it through naga's GLSL frontend against the CPU

@@ -87,7 +87,7 @@ struct TorParams {
     seed: u32,
     det: i32,
     t: f32,
-    pad0: u32,
+    colours: u32,
     level: [TorLevel; 2],
 }
 
@@ -491,7 +491,7 @@ impl BankGpu {
             seed: s.seed,
             det: if s.rhomboid.is_some() { small(det)? } else { 0 },
             t,
-            pad0: 0,
+            colours: s.wang.unwrap_or(0),
             level,
         };
         Ok((params, cols, rows))

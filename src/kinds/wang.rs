@@ -44,7 +44,8 @@ impl Kind for Wang {
         Ok(lines)
     }
 
+    /// The toroidal fill, its cells choosing their tile by `wang_tile` (shaders/hash.wgsl).
     fn gpu(&self) -> GpuFill {
-        GpuFill::Cpu("Wang banks have no GPU twin yet")
+        GpuFill::Toroidal
     }
 }

@@ -200,7 +200,7 @@ impl Source {
         // adapter a full frame costs ~100 ms even for a bank: their pages are filled on
         // the GPU by the streamer's workers, on a device of their own, so the render
         // loop's queue never waits behind a page's dispatch.
-        // RSGF, Wang and synth banks have no GPU twin: CPU pages.
+        // RSGF and synth banks have no GPU twin: CPU pages.
         // Seed 001 models and imperfection layers have no GPU twin either.
         let gpu_fill = spec.kind().gpu();
         let on_gpu = layer.is_none() && !matches!(gpu_fill, GpuFill::Cpu(_));
