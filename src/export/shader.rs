@@ -527,20 +527,35 @@ fn readme(
              them from your own kernels or fragment functions.",
         ),
     };
-    let mut table = String::new();
-    for b in buffers {
-        let kind = if b.uniform {
-            "uniform"
-        } else {
-            "storage, read-only"
-        };
-        table.push_str(&format!(
-            "| {} | {kind}: {} | `{}` |\n",
-            b.binding, b.what, b.file
-        ));
-    }
+    // Every binding in order, the example entry point's two among the buffers.
+    let mut rows: Vec<(u32, String)> = buffers
+        .iter()
+        .map(|b| {
+            let kind = if b.uniform {
+                "uniform"
+            } else {
+                "storage, read-only"
+            };
+            (
+                b.binding,
+                format!("| {} | {kind}: {} | `{}` |\n", b.binding, b.what, b.file),
+            )
+        })
+        .collect();
+    rows.push((
+        region_binding,
+        format!(
+            "| {region_binding} | uniform `SurftileRegion` of the example entry point `surftile_fill` | |\n"
+        ),
+    ));
+    rows.push((
+        out_binding,
+        format!("| {out_binding} | storage, read-write: `surftile_fill`'s output | |\n"),
+    ));
+    rows.sort();
+    let table: String = rows.into_iter().map(|(_, row)| row).collect();
     format!(
-        "# surftile sampler ({name})
+        "# surftile sampler: {name}
 
 `{file}` samples this bank's infinite surface ({rule} rule, seed {seed}):
 `surftile_sample(ip, fp)` returns every channel (vec4) and `surftile_height(ip, fp)`
@@ -551,9 +566,7 @@ levels are exported.
 
 | binding (group 0) | what | file |
 |---|---|---|
-{table}| {region_binding} | uniform `SurftileRegion` of the example entry point `surftile_fill` | |
-| {out_binding} | storage, read-write: `surftile_fill`'s output | |
-
+{table}
 {how}
 
 Usage, in a compute or fragment shader (WGSL shown; the other languages have the same
