@@ -123,10 +123,31 @@ fn bilinear(l: u32, tile: u32, ix: u32, iy: u32, corner: vec4<f32>) -> vec4<f32>
     return acc;
 }
 
+struct Triangle {
+    w: vec3<f32>,
+    v0: Vertex,
+    v1: Vertex,
+    v2: Vertex,
+}
+
+// The triangle of skewed cell (i, j) at fraction (fx, fy): its three vertices' hashed
+// choices and barycentric weights (BlendSurface::triangle and vertices).
+fn triangle(i: vec2<u32>, j: vec2<u32>, fx: f32, fy: f32) -> Triangle {
+    let z = 1.0 - fx - fy;
+    if z > 0.0 {
+        return Triangle(vec3<f32>(z, fy, fx), vertex(i, j), vertex(i, cell_add(j, 1)), vertex(cell_add(i, 1), j));
+    }
+    let i1 = cell_add(i, 1);
+    let j1 = cell_add(j, 1);
+    return Triangle(vec3<f32>(-z, 1.0 - fy, 1.0 - fx), vertex(i1, j1), vertex(i1, j), vertex(i, j1));
+}
+
 // The blend of the three vertices' tiles at level slot l, mapped through T⁻¹
 // (BlendSurface::eval_level). (xm, ym): the level-0 texel under the offset masks;
 // (fx, fy): its fraction.
-fn eval_level(l: u32, xm: u32, ym: u32, fx: f32, fy: f32, verts: array<Vertex, 3>, w: vec3<f32>) -> vec4<f32> {
+fn eval_level(l: u32, xm: u32, ym: u32, fx: f32, fy: f32, tri: Triangle) -> vec4<f32> {
+    let w = tri.w;
+    let verts = array<Vertex, 3>(tri.v0, tri.v1, tri.v2);
     let lv = params.level[l];
     let norm = 1.0 / sqrt(w.x * w.x + w.y * w.y + w.z * w.z);
     let wsum = w.x + w.y + w.z;
@@ -182,24 +203,12 @@ fn fill_blend(@builtin(global_invocation_id) id: vec3<u32>) {
     let fy = row.vf;
     let i = cell_add(params.bx0, col.ui + row.ui + i32(floor(su)));
     let j = cell_add(params.by0, row.vi);
-    let z = 1.0 - fx - fy;
-    let lower = z > 0.0;
-    var w: vec3<f32>;
-    var verts: array<Vertex, 3>;
-    if lower {
-        w = vec3<f32>(z, fy, fx);
-        verts = array<Vertex, 3>(vertex(i, j), vertex(i, cell_add(j, 1)), vertex(cell_add(i, 1), j));
-    } else {
-        w = vec3<f32>(-z, 1.0 - fy, 1.0 - fx);
-        let i1 = cell_add(i, 1);
-        let j1 = cell_add(j, 1);
-        verts = array<Vertex, 3>(vertex(i1, j1), vertex(i1, j), vertex(i, j1));
-    }
+    let tri = triangle(i, j, fx, fy);
     let xm = (params.xm0 + u32(col.d)) & params.mask_x;
     let ym = (params.ym0 + u32(row.d)) & params.mask_y;
-    var a = eval_level(0u, xm, ym, col.f, row.f, verts, w);
+    var a = eval_level(0u, xm, ym, col.f, row.f, tri);
     if params.t > 0.0 {
-        let b = eval_level(1u, xm, ym, col.f, row.f, verts, w);
+        let b = eval_level(1u, xm, ym, col.f, row.f, tri);
         a += (b - a) * params.t;
     }
     let base = (id.y * params.width + id.x) * params.channels;

@@ -1,7 +1,7 @@
 // The point sampler of blend banks (RPN, ADSN) for a renderer's own shaders. Needs
-// hash.wgsl and blend.wgsl before it: it calls the GPU fill's own `vertex` and
-// `eval_level` with the fill's uniform `params`, and only replaces the fill's entry point
-// (whose host splits each coordinate in f64) with a point function.
+// hash.wgsl and blend.wgsl before it: it calls the GPU fill's own `triangle` and
+// `eval_level` with the fill's uniform `params`, and only replaces the fill's entry
+// point (whose host splits each coordinate in f64) with a point function.
 // `surftile export-shader` translates the three files with naga.
 //
 // A position is an integer texel ip (|ip| < 2^30) and a fraction fp in [0, 1). The skewed
@@ -53,21 +53,10 @@ fn surftile_sample(ip: vec2<i32>, fp: vec2<f32>) -> vec4<f32> {
     let fy = vy.f;
     let i = cell_from_i32(ux.i + uy.i + i32(floor(su)));
     let j = cell_from_i32(vy.i);
-    let z = 1.0 - fx - fy;
-    var w: vec3<f32>;
-    var verts: array<Vertex, 3>;
-    if z > 0.0 {
-        w = vec3<f32>(z, fy, fx);
-        verts = array<Vertex, 3>(vertex(i, j), vertex(i, cell_add(j, 1)), vertex(cell_add(i, 1), j));
-    } else {
-        w = vec3<f32>(-z, 1.0 - fy, 1.0 - fx);
-        let i1 = cell_add(i, 1);
-        let j1 = cell_add(j, 1);
-        verts = array<Vertex, 3>(vertex(i1, j1), vertex(i1, j), vertex(i, j1));
-    }
+    let tri = triangle(i, j, fx, fy);
     let xm = u32(ip.x) & params.mask_x;
     let ym = u32(ip.y) & params.mask_y;
-    return eval_level(0u, xm, ym, fp.x, fp.y, verts, w);
+    return eval_level(0u, xm, ym, fp.x, fp.y, tri);
 }
 
 // Channel 0 (the height) at texel position ip + fp.

@@ -92,6 +92,7 @@ fn shader_functions_keep_the_cpu_names() {
         "blend",
         &[
             "vertex",
+            "triangle",
             "lut_eval",
             "bilinear",
             "eval_level",

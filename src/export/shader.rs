@@ -4,7 +4,7 @@
 //! style).
 //!
 //! - Blend banks (RPN, ADSN): `shaders/blend_sampler.wgsl` after `hash.wgsl` and
-//!   `blend.wgsl`, calling the GPU fill's own `vertex`, `eval_level`, `bilinear` and
+//!   `blend.wgsl`, calling the GPU fill's own `triangle`, `eval_level`, `bilinear` and
 //!   `lut_eval` with its uniform: one source of truth.
 //! - Toroidal (roller) and Wang (quilt) banks: `shaders/sampler.wgsl` after `hash.wgsl`
 //!   (the GPU fill's hashes and its `wang_tile`; the toroidal fill's cell arithmetic works
