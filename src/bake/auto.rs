@@ -24,10 +24,10 @@
 //! **Why RSGF rather than synth for structured stochastic exemplars.** Both stream in
 //! any split; both copy exemplar pieces. On the seven test photos at 1024² (same run,
 //! same code, `examples/structure_figures.rs`), stochastic RSGF with cuts has the
-//! lowest coherence of the three (0.19–0.32, against synth's 0.20–0.39 and
-//! texture-synthesis' 0.32–0.45) and better completeness than texture-synthesis on
-//! all seven (0.12–0.25 against 0.18–0.32), keeps the standard deviation (0.87–1.02;
-//! synth 0.81–1.02), and fills 1024² in 0.14–0.31 s. Synth, whose correction passes
+//! lowest coherence of the three (0.20–0.33, against synth's 0.20–0.39 and
+//! texture-synthesis' 0.32–0.44) and better completeness than texture-synthesis on
+//! all seven (0.07–0.12 against 0.18–0.32), keeps the standard deviation (0.89–1.02;
+//! synth 0.81–1.02), and fills 1024² in 0.17–0.74 s. Synth, whose correction passes
 //! smear small exemplars (the 127 × 80 rocks photo loses its dark joints: standard
 //! deviation 0.81), stays available by name.
 //!
@@ -114,9 +114,9 @@ pub fn choose_method(ex: &Raster, seed: u64) -> AutoChoice {
                 );
                 let rsgf = RsgfParams::stochastic();
                 let patch = rsgf.block_px + 2 * rsgf.border_px;
-                if rsgf.check_exemplar(ex.width, ex.height).is_ok()
-                    && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS
-                {
+                // A whole patch must fit, although reflected edges would let a block
+                // alone do: fewer than 2·o + 1 positions per axis repeat too often.
+                if patch <= ex.width.min(ex.height) && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS {
                     AutoChoice {
                         method: Method::Rsgf,
                         stochastic: true,

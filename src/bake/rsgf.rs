@@ -9,7 +9,7 @@ use crate::analysis::translation::{
 };
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::Result;
-use crate::models::rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface};
+use crate::models::rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface, mip_chain};
 use crate::raster::Raster;
 use crate::stream::{Region, Surface};
 
@@ -67,6 +67,7 @@ impl RsgfOptions {
             join: self.join,
             feather_px: self.feather_px,
             histogram: None,
+            reflect_edges: self.stochastic,
             v1,
             v2,
         }
@@ -81,15 +82,16 @@ const MAP_STEPS: usize = 64;
 /// The histogram map of a stochastic RSGF model (seed 000 §3.1.2's histogram
 /// matching, T⁻¹, applied to the output): per channel, knots from the quantiles of a
 /// trial synthesis (seed 0, TRIAL_SIDE² at the origin) to the exemplar's at the same
-/// levels. Patches copied from an exemplar cover its border less than its middle: a
-/// 60-px patch sits at 41 positions per axis of a 100-px exemplar, so a border pixel
-/// is in 1 where a central one is in 41, and the output's histogram is the
-/// centre's. On the 100² dried-mud photo that is a W1 of 0.087 and a standard
-/// deviation of 0.87 of the exemplar's (1024²); the map brings them to 0.015 and 0.995
+/// levels. Blocks copied from an exemplar cover its border less than its middle: a
+/// 40-px block sits at 61 positions per axis of a 100-px exemplar (edges reflected,
+/// [`RsgfParams::reflect_edges`]), so an edge pixel is in 1 where a central one is in
+/// 40, and the output's histogram leans to the middle's. On the 100² dried-mud photo
+/// that is a W1 of 0.07 and a standard deviation of 0.89–0.90 of the exemplar's (512²);
+/// the map brings them to 0.016 and 0.99
 /// (`tests/rsgf.rs::a_histogram_map_restores_small_exemplars`). It is off by default:
 /// mapped values are no longer the exemplar's, and the patch figures pay for it
-/// (coherence 0.238 → 0.367, PSD error 0.042 → 0.133 on that photo). None for a flat
-/// channel.
+/// (measured before reflected edges, 1024²: coherence 0.238 → 0.367, PSD error
+/// 0.042 → 0.133 on that photo). None for a flat channel.
 pub fn histogram_map(model: RsgfModel, ex: &Raster) -> Result<Option<Vec<Vec<[f32; 2]>>>> {
     let c = ex.channels;
     let surface = RsgfSurface::from_model(model, 0);
@@ -173,8 +175,10 @@ pub(crate) fn bake(
     let params = options.params(v1, v2);
     // Building the model checks the lattice against the exemplar, as loading will.
     let model = RsgfModel::new(ex, &params)?;
-    let levels: Vec<LevelInfo> = model
-        .levels
+    // The bank keeps the exemplar's own chain (the model's may be extended by its
+    // reflected edges, which loading rebuilds).
+    let chain = mip_chain(ex);
+    let levels: Vec<LevelInfo> = chain
         .iter()
         .map(|l| {
             let (mean, sigma) = crate::bake::channel_stats(&l.data, c);
@@ -186,7 +190,7 @@ pub(crate) fn bake(
             }
         })
         .collect();
-    let texels: Vec<Vec<f32>> = model.levels.iter().map(|l| l.data.clone()).collect();
+    let texels: Vec<Vec<f32>> = chain.into_iter().map(|l| l.data).collect();
     let mut params = params;
     if options.stochastic && options.histogram {
         params.histogram = histogram_map(model, ex)?;
@@ -219,7 +223,7 @@ pub(crate) fn bake(
         seed,
         exemplar,
         bake: format!(
-            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} join={:?} feather={} stochastic={} {bake_text}",
+            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} join={:?} feather={} stochastic={} reflect_edges={} {bake_text}",
             v1.0,
             v1.1,
             v2.0,
@@ -230,7 +234,8 @@ pub(crate) fn bake(
             params.metric,
             params.join,
             params.feather_px,
-            options.stochastic
+            options.stochastic,
+            params.reflect_edges
         ),
         record: Record::Rsgf(
             serde_json::to_value(&params)

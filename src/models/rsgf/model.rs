@@ -87,6 +87,11 @@ pub struct RsgfModel {
     pub(crate) o: i64,
     /// Patch positions per row: W − E + 1.
     pub(crate) nx: usize,
+    /// Width of the mirrored frame around the exemplar in level 0 (o with
+    /// [`RsgfParams::reflect_edges`], else 0).
+    pad: usize,
+    /// What a cut pays for each of its pixels that would show a mirrored one.
+    mirror_cost: f64,
     /// Positions filed by residue, exactly.
     exact: Lists,
     /// As `exact`, with empty residues replaced by their nearest non-empty ones.
@@ -106,10 +111,11 @@ impl RsgfModel {
                 "finite values: fill missing points first",
             ));
         }
-        let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+        let (c, pad) = (exemplar.channels, params.reflect_edges);
         if !(1..=4).contains(&c) {
             return Err(Error::param("RSGF exemplar channels", c, "1 to 4 channels"));
         }
+        let (w, h) = (exemplar.width, exemplar.height);
         if w * h > MAX_EXEMPLAR_PIXELS {
             return Err(Error::Limits(format!(
                 "an RSGF exemplar of {w}×{h} pixels (at most 2^22, e.g. 2048²: the gap search keeps per-position tables and spectra of it)"
@@ -133,10 +139,20 @@ impl RsgfModel {
             ));
         }
         let (b, o) = (params.block_px as i64, params.border_px as i64);
+        // Positions index the extended exemplar; a position's residue is that of its
+        // block's corner in the exemplar's own coordinates.
+        let reflected;
+        let (source, shift) = if pad {
+            reflected = reflect_pad(exemplar, params.border_px);
+            (&reflected, o)
+        } else {
+            (exemplar, 0)
+        };
+        let (w, h) = (source.width, source.height);
         let ext = params.block_px + 2 * params.border_px;
         let (nx, ny) = (w + 1 - ext, h + 1 - ext);
         let residues = cells as usize;
-        let residue_of = |qx: i64, qy: i64| residue(lattice, (qx, qy));
+        let residue_of = |qx: i64, qy: i64| residue(lattice, (qx - shift, qy - shift));
         // Exact lists: every position under its residue, in position order.
         let mut count = vec![0u32; residues + 1];
         for qy in 0..ny {
@@ -216,8 +232,23 @@ impl RsgfModel {
             start: near_start,
             items: near_items,
         };
-        let levels = mip_chain(exemplar);
-        let gap = GapTables::new(exemplar, params);
+        let levels = mip_chain(source);
+        let gap = GapTables::new(source, params);
+        // A cut through mirrored pixels costs more than any path through the exemplar's
+        // own: a million times the largest squared difference of one pixel.
+        let spread: f64 = (0..c)
+            .map(|ch| {
+                let (lo, hi) = exemplar
+                    .data
+                    .iter()
+                    .skip(ch)
+                    .step_by(c)
+                    .fold((f64::MAX, f64::MIN), |(l, h), &v| {
+                        (l.min(v as f64), h.max(v as f64))
+                    });
+                (hi - lo) * (hi - lo)
+            })
+            .sum();
         Ok(RsgfModel {
             params: params.clone(),
             c,
@@ -226,6 +257,8 @@ impl RsgfModel {
             b,
             o,
             nx,
+            pad: shift as usize,
+            mirror_cost: 1e6 * spread.max(f64::MIN_POSITIVE),
             exact,
             near,
             gap,
@@ -414,6 +447,31 @@ impl RsgfModel {
         }
     }
 
+    /// Whether pixel (px, py) of block row j alone (as [`RsgfModel::row_pixel`] composes
+    /// it) reads a pixel of the mirrored frame, with any weight.
+    fn row_mirrored(
+        &self,
+        j: i64,
+        px: i64,
+        py: i64,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+        cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
+    ) -> bool {
+        let l0 = &self.levels[0];
+        let (oy, b, pad) = (j * self.b - self.o, self.b, self.pad);
+        self.split(Edge::V, px, j, py, cut)
+            .into_iter()
+            .filter(|&(_, w)| w != 0.0)
+            .any(|(i, _)| {
+                let (qx, qy) = self.position(pick(i, j));
+                let (sx, sy) = (
+                    qx + (px - (i * b - self.o)) as usize,
+                    qy + (py - oy) as usize,
+                );
+                sx < pad || sy < pad || sx >= l0.w - pad || sy >= l0.h - pad
+            })
+    }
+
     /// The blocks (with weights) that show coordinate `s` along one axis when patches
     /// join along cuts: a vertical edge's (`Edge::V`, s = x) in block row `fixed`, a
     /// horizontal edge's (`Edge::H`, s = y) in block column `fixed`; `cross` is the
@@ -492,14 +550,21 @@ impl RsgfModel {
                 let l0 = &self.levels[0];
                 let (ax, ay) = self.position(pick(i - 1, j));
                 let (bx, by) = self.position(pick(i, j));
+                let pad = self.pad;
                 let path = min_cut(b + 2 * o, m, None, |t, k| {
                     let (pa, pb) = (
                         ((ay + t) * l0.w + ax + b + f + k) * c,
                         ((by + t) * l0.w + bx + f + k) * c,
                     );
+                    // With the cut at k + f, the block before shows the overlap's
+                    // columns up to k + 2f − 1 and the block after from k on (the ramp
+                    // included): neither may reach into the mirrored frame.
+                    let mirrored =
+                        (k + 2 * f >= 1 && ax + b + k + 2 * f > l0.w - pad) || bx + k < pad;
                     (0..c)
                         .map(|ch| (l0.data[pa + ch] as f64 - l0.data[pb + ch] as f64).powi(2))
-                        .sum()
+                        .sum::<f64>()
+                        + if mirrored { self.mirror_cost } else { 0.0 }
                 });
                 path.into_iter().map(|k| (k + f) as u16).collect()
             }
@@ -525,9 +590,16 @@ impl RsgfModel {
                     let (x, y) = (x0 + t as i64, y0 + (f + k) as i64);
                     self.row_pixel(j - 1, x, y, &mut pick, &mut cut, &mut va);
                     self.row_pixel(j, x, y, &mut pick, &mut cut, &mut vb);
+                    // As for vertical cuts: the row above shows up to y + f − 1, the
+                    // row below from y − f on.
+                    let mirrored = self.pad > 0
+                        && ((k + 2 * f >= 1
+                            && self.row_mirrored(j - 1, x, y + f as i64 - 1, &mut pick, &mut cut))
+                            || self.row_mirrored(j, x, y - f as i64, &mut pick, &mut cut));
                     (0..c)
                         .map(|ch| (va[ch] as f64 - vb[ch] as f64).powi(2))
-                        .sum()
+                        .sum::<f64>()
+                        + if mirrored { self.mirror_cost } else { 0.0 }
                 });
                 let mut full = vec![o as u16; b + 2 * o];
                 for (t, k) in path.into_iter().enumerate() {
@@ -773,6 +845,38 @@ fn bilinear_add(lv: &Level, c: usize, x: f64, y: f64, w: f32, out: &mut [f32]) {
     }
 }
 
+/// `ex` extended by `p` pixels on every side with its mirror image about its edge
+/// pixels (x = −k shows x = k; `p` < both sides).
+pub(crate) fn reflect_pad(ex: &Raster, p: usize) -> Raster {
+    let (w, h, c) = (ex.width, ex.height, ex.channels);
+    let (pw, ph) = (w + 2 * p, h + 2 * p);
+    let reflect = |s: usize, n: usize| {
+        let s = s as i64 - p as i64;
+        let n = n as i64;
+        (if s < 0 {
+            -s
+        } else if s >= n {
+            2 * (n - 1) - s
+        } else {
+            s
+        }) as usize
+    };
+    let mut data = Vec::with_capacity(pw * ph * c);
+    for y in 0..ph {
+        let row = reflect(y, h) * w;
+        for x in 0..pw {
+            let at = (row + reflect(x, w)) * c;
+            data.extend_from_slice(&ex.data[at..at + c]);
+        }
+    }
+    Raster {
+        width: pw,
+        height: ph,
+        channels: c,
+        data,
+    }
+}
+
 /// The exemplar and its 2×2 box-filtered halvings down to [`MIN_LEVEL_SIDE`].
 pub(crate) fn mip_chain(exemplar: &Raster) -> Vec<Level> {
     let c = exemplar.channels;
@@ -808,6 +912,23 @@ pub(crate) fn mip_chain(exemplar: &Raster) -> Vec<Level> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Reflection about the edge pixels, by hand.
+    #[test]
+    fn reflect_pad_mirrors_about_the_edge_pixels() {
+        // 3 × 2, one channel: 0 1 2 / 3 4 5; padded by 1: x = −1 shows x = 1.
+        let ex = Raster::from_vec(3, 2, 1, vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0]).unwrap();
+        let p = reflect_pad(&ex, 1);
+        assert_eq!((p.width, p.height, p.channels), (5, 4, 1));
+        #[rustfmt::skip]
+        let want = [
+            4.0, 3.0, 4.0, 5.0, 4.0,
+            1.0, 0.0, 1.0, 2.0, 1.0,
+            4.0, 3.0, 4.0, 5.0, 4.0,
+            1.0, 0.0, 1.0, 2.0, 1.0,
+        ];
+        assert_eq!(p.data, want);
+    }
 
     /// A histogram map interpolates between its knots and holds its ends, and stays
     /// finite with knots near ±f32::MAX.
