@@ -717,6 +717,14 @@ fn bad_rsgf_input_is_refused() {
         ..RsgfParams::stochastic()
     });
     assert!(patch.contains("block + 2 × border"), "{patch}");
+    let blend = msg(RsgfParams {
+        join: Join::Blend,
+        ..RsgfParams::stochastic()
+    });
+    assert!(
+        blend.contains("reflect_edges") && blend.contains("cuts"),
+        "{blend}"
+    );
     // With reflected edges, a block alone must fit.
     assert_eq!(
         msg(RsgfParams {

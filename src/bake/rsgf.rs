@@ -67,7 +67,9 @@ impl RsgfOptions {
             join: self.join,
             feather_px: self.feather_px,
             histogram: None,
-            reflect_edges: self.stochastic,
+            // Only cuts can keep the mirrored pixels out of the output; a linear blend
+            // would show them across every overlap.
+            reflect_edges: self.stochastic && self.join == Join::Cut,
             v1,
             v2,
         }

@@ -100,7 +100,9 @@ pub struct RsgfParams {
     /// pixels serve the gap matching; cuts pay for each pixel that would show one (a
     /// million times the largest squared difference of a pixel), so none shows
     /// where a cut can avoid it (`tests/rsgf.rs::reflected_edges_show_the_exemplars_border`).
-    /// Default on in stochastic mode; banks that do not record it: off.
+    /// Default on in stochastic mode with cuts; banks that do not record it: off. With
+    /// [`Join::Blend`] the mirrored pixels would show across every overlap; zoomed-out
+    /// samples, which blend patches read from the mip chain, may show them faintly.
     #[serde(default)]
     pub reflect_edges: bool,
     /// Translation vectors v₁, v₂ in pixels ((1, 0), (0, 1) in stochastic mode).
@@ -175,6 +177,13 @@ impl RsgfParams {
                     "0 to less than the border ({} px): the ramp around a cut stays inside the overlap",
                     self.border_px
                 ),
+            ));
+        }
+        if self.reflect_edges && self.join != Join::Cut {
+            return Err(Error::param(
+                "reflect_edges",
+                "with linear blending",
+                "cuts (join = cut): only a cut keeps the mirrored pixels out of the output",
             ));
         }
         if self.tolerance_px > 64 {
