@@ -76,41 +76,28 @@ fn bench(c: &mut Criterion) {
     g.bench_function("rust_fill", |b| {
         b.iter(|| rust.fill(black_box(&region), &mut out).unwrap())
     });
-    g.bench_function("surftile_fill", |b| {
-        b.iter(|| {
-            // SAFETY: a live handle and a buffer of side² floats.
-            let s = unsafe {
-                surftile_fill(
-                    handle,
-                    region.x,
-                    region.y,
-                    1.0,
-                    side,
-                    side,
-                    out.as_mut_ptr(),
-                    side,
-                )
-            };
-            assert_eq!(s, SurftileStatus::Ok);
-        })
-    });
+    // The C entry point on `buf`, rows `stride` floats apart.
+    let c_fill = |buf: &mut [f32], stride: usize| {
+        assert!(buf.len() >= (side - 1) * stride + side);
+        // SAFETY: a live handle, and a buffer that holds side rows `stride` apart (checked
+        // above).
+        let s = unsafe {
+            surftile_fill(
+                handle,
+                region.x,
+                region.y,
+                1.0,
+                side,
+                side,
+                buf.as_mut_ptr(),
+                stride,
+            )
+        };
+        assert_eq!(s, SurftileStatus::Ok);
+    };
+    g.bench_function("surftile_fill", |b| b.iter(|| c_fill(&mut out, side)));
     g.bench_function("surftile_fill_padded_stride", |b| {
-        b.iter(|| {
-            // SAFETY: a live handle and a buffer of side × (side + 16) floats.
-            let s = unsafe {
-                surftile_fill(
-                    handle,
-                    region.x,
-                    region.y,
-                    1.0,
-                    side,
-                    side,
-                    padded.as_mut_ptr(),
-                    side + 16,
-                )
-            };
-            assert_eq!(s, SurftileStatus::Ok);
-        })
+        b.iter(|| c_fill(&mut padded, side + 16))
     });
     g.finish();
     // SAFETY: the handle from surftile_open, no longer used.

@@ -427,10 +427,9 @@ impl RsgfModel {
     ) {
         let c = self.c;
         let l0 = &self.levels[0];
-        let (oy, b) = (j * self.b - self.o, self.b);
         let mut at = |i: i64| {
-            let (qx, qy) = self.position(pick(i, j));
-            ((qy + (py - oy) as usize) * l0.w + qx + (px - (i * b - self.o)) as usize) * c
+            let (sx, sy) = self.source(i, j, px, py, pick);
+            (sy * l0.w + sx) * c
         };
         let cols = self.split(Edge::V, px, j, py, cut);
         if cols[1].1 == 0.0 {
@@ -457,19 +456,29 @@ impl RsgfModel {
         pick: &mut dyn FnMut(i64, i64) -> u32,
         cut: &mut dyn FnMut(Edge, i64, i64, usize) -> u16,
     ) -> bool {
-        let l0 = &self.levels[0];
-        let (oy, b, pad) = (j * self.b - self.o, self.b, self.pad);
+        let (l0, pad) = (&self.levels[0], self.pad);
         self.split(Edge::V, px, j, py, cut)
             .into_iter()
             .filter(|&(_, w)| w != 0.0)
             .any(|(i, _)| {
-                let (qx, qy) = self.position(pick(i, j));
-                let (sx, sy) = (
-                    qx + (px - (i * b - self.o)) as usize,
-                    qy + (py - oy) as usize,
-                );
+                let (sx, sy) = self.source(i, j, px, py, pick);
                 sx < pad || sy < pad || sx >= l0.w - pad || sy >= l0.h - pad
             })
+    }
+
+    /// The level-0 texel that block (i, j)'s patch lays on output pixel (px, py).
+    #[inline]
+    fn source(
+        &self,
+        i: i64,
+        j: i64,
+        px: i64,
+        py: i64,
+        pick: &mut dyn FnMut(i64, i64) -> u32,
+    ) -> (usize, usize) {
+        let (qx, qy) = self.position(pick(i, j));
+        let (ox, oy) = self.origin(i, j);
+        (qx + (px - ox) as usize, qy + (py - oy) as usize)
     }
 
     /// The blocks (with weights) that show coordinate `s` along one axis when patches
