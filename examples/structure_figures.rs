@@ -24,7 +24,7 @@ use surftile::kinds::open;
 use surftile::models::synth::SynthParams;
 use surftile::prep::level::level_plane;
 use surftile::raster::Raster;
-use surftile::stats::structure::structure;
+use surftile::stats::structure::{DEFAULT_SEAM_CELL, seam_any_phase, structure};
 use surftile::stats::{psd_error, wasserstein1_standardised};
 use surftile::stream::{Region, Surface};
 use texture_synthesis as ts;
@@ -115,21 +115,30 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         .method(method)
         .leveling(leveling)
         .seed(args.seed);
+    let block = if args.block > 0 {
+        args.block
+    } else {
+        RsgfOptions::default().block_px
+    };
+    // Seams are searched at the default cell and, for RSGF, at its block: a grid of
+    // 40 px does not divide the 32-px cell, so that cell alone spreads its seams over
+    // every offset. Both rows of a run get the same cells.
+    let cells: &[usize] = if method == Method::Rsgf {
+        &[DEFAULT_SEAM_CELL, block]
+    } else {
+        &[DEFAULT_SEAM_CELL]
+    };
     // Each method takes only its own options.
     let builder = if method == Method::Rsgf {
         builder.rsgf(RsgfOptions {
             stochastic: true,
-            block_px: if args.block > 0 {
-                args.block
-            } else {
-                RsgfOptions::default().block_px
-            },
+            block_px: block,
             border_px: if args.border > 0 {
                 args.border
             } else {
                 RsgfOptions::default().border_px
             },
-            feather_px: usize::try_from(args.feather).unwrap_or(RsgfOptions::default().feather_px),
+            feather_px: usize::try_from(args.feather).ok(),
             ..RsgfOptions::default()
         })
     } else {
@@ -164,6 +173,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         &args.method,
         &ex,
         &synth,
+        cells,
         format!("bake {baked:.2} s + fill {filled:.2} s"),
     );
     save(args, &name, &args.method, &ex, &synth)?;
@@ -206,6 +216,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             "texture-synthesis",
             &ex,
             &embark,
+            cells,
             format!("{took:.2} s"),
         );
         save(args, &name, "texture-synthesis", &ex, &embark)?;
@@ -214,7 +225,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
 }
 
 /// Worst per-channel W1, PSD error and |σ ratio − 1|, and the structure figures.
-fn report(name: &str, method: &str, ex: &Raster, out: &Raster, time: String) {
+fn report(name: &str, method: &str, ex: &Raster, out: &Raster, cells: &[usize], time: String) {
     let s = structure(ex, out, None);
     let (mut w1, mut psd, mut sd) = (0.0f64, 0.0f64, 1.0f64);
     for k in 0..ex.channels.min(out.channels) {
@@ -231,11 +242,18 @@ fn report(name: &str, method: &str, ex: &Raster, out: &Raster, time: String) {
             sd = ratio;
         }
     }
-    let seams = s.seams.as_ref().map_or(f64::NAN, |p| p.worst);
-    let seam_at = s
-        .seams
-        .as_ref()
-        .map_or(String::new(), |p| format!(" ({} {})", p.axis, p.offset));
+    // The worst seam over the default cell and each claimed grid (RSGF's block).
+    let worst = cells
+        .iter()
+        .filter(|&&cell| cell != s.seams.as_ref().map_or(0, |p| p.cell))
+        .filter(|&&cell| out.width >= 2 * cell && out.height >= 2 * cell)
+        .map(|&cell| seam_any_phase(out, cell))
+        .chain(s.seams.clone())
+        .max_by(|a, b| a.worst.ln().abs().total_cmp(&b.worst.ln().abs()));
+    let seams = worst.as_ref().map_or(f64::NAN, |p| p.worst);
+    let seam_at = worst.as_ref().map_or(String::new(), |p| {
+        format!(" ({} {} of {})", p.axis, p.offset, p.cell)
+    });
     println!(
         "{name:<24} {method:<18} coherence {:.3}  completeness {:.3}  self-rep {:.3}  copy {:.3}  seam {:.3}{seam_at}  W1 {:.3}  PSD {:.3}  sd {:.3}  {time}",
         s.coherence, s.completeness, s.self_repetition, s.copy_score, seams, w1, psd, sd

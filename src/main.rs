@@ -242,9 +242,10 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Join::Cut)]
         join: Join,
         /// RSGF: with cuts, the patches ramp over 2 × this many pixels around the cut
-        /// (0: a hard cut); below the border.
-        #[arg(long, default_value_t = surftile::models::rsgf::DEFAULT_FEATHER, allow_negative_numbers = true)]
-        feather: usize,
+        /// (0: a hard cut); below the border. Default: 2 on a lattice; in stochastic
+        /// mode 1 on an exemplar rough at the pixel scale (photos), 3 on a smooth one
+        #[arg(long, allow_negative_numbers = true)]
+        feather: Option<usize>,
         /// RSGF: stochastic mode, v1 = (1, 0) and v2 = (0, 1), no lattice estimation.
         #[arg(long)]
         stochastic: bool,

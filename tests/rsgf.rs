@@ -491,7 +491,7 @@ fn cuts_keep_the_standard_deviation() {
         );
         assert!(blend < 0.92, "{name}: blended sd ratio {blend}");
         let (_, ex, hard) = sd_ratio(RsgfOptions {
-            feather_px: 0,
+            feather_px: Some(0),
             ..stochastic
         });
         let mut values: Vec<u32> = ex.data.iter().map(|v| v.to_bits()).collect();
@@ -505,8 +505,8 @@ fn cuts_keep_the_standard_deviation() {
 }
 
 /// Blocks cover a small exemplar's border less than its middle, so stochastic RSGF of
-/// the 100² dried-mud photo misses its histogram (W1 0.069–0.074 per channel, standard
-/// deviation 0.89–0.90 of the exemplar's at 512²); with the histogram map every channel
+/// the 100² dried-mud photo misses its histogram (W1 0.061–0.066 per channel, standard
+/// deviation 0.90–0.91 of the exemplar's at 512²); with the histogram map every channel
 /// is back within W1 0.05 and 5% of the standard deviation (0.016, 0.99).
 #[test]
 fn a_histogram_map_restores_small_exemplars() {
@@ -651,6 +651,105 @@ fn reflected_edges_show_the_exemplars_border() {
     assert!(reflected >= 0.12, "reflected edges: {reflected}");
     assert!(inside < 0.05, "without: {inside}");
     assert!(mirrored < 2e-4, "mirrored pixels shown: {mirrored}");
+}
+
+/// The ramp of a stochastic bank follows the exemplar's roughness at the pixel scale:
+/// known answers of the measure, the ramp each kind of exemplar gets, and what it is
+/// for: seams at the block's own period, searched at every phase of the 40-px cell,
+/// within the issue's [0.9, 1.15] on a photo (grass, rough) and on an AFM map (di-6,
+/// smooth), where the former single default (a 4-px ramp) read 0.888 and 1.206 in
+/// the same figures (1024², seed 0, `examples/structure_figures.rs`).
+#[test]
+fn the_cut_ramp_follows_the_pixel_scale_roughness() {
+    use surftile::bake::rsgf::{ROUGH_FEATHER, SMOOTH_FEATHER, pixel_roughness};
+    use surftile::stats::structure::seam_any_phase;
+    // Known answers: a sine of period 16 along x, a checkerboard, a flat map.
+    let sine = Raster::from_vec(
+        64,
+        32,
+        1,
+        (0..64 * 32)
+            .map(|i| (std::f32::consts::TAU * (i % 64) as f32 / 16.0).sin())
+            .collect(),
+    )
+    .unwrap();
+    // sin²(π/P) for the sine over whole periods; the map's 63 pairs per row miss one
+    // of each row's 64, a 1/64 share of its squared differences: 3% allowed.
+    let want = (std::f64::consts::PI / 16.0).sin().powi(2);
+    let got = pixel_roughness(&sine);
+    assert!(
+        (got - want).abs() < 0.03 * want,
+        "sine: {got} against {want}"
+    );
+    let checker = Raster::from_vec(
+        8,
+        8,
+        1,
+        (0..64)
+            .map(|i| if (i % 8 + i / 8) % 2 == 0 { 1.0 } else { -1.0 })
+            .collect(),
+    )
+    .unwrap();
+    assert!((pixel_roughness(&checker) - 2.0).abs() < 1e-9);
+    assert_eq!(
+        pixel_roughness(&Raster::from_vec(4, 4, 2, vec![3.0; 32]).unwrap()),
+        0.0
+    );
+
+    let n = 1024;
+    for (name, feather) in [
+        ("tests/data/skimage-grass-256.png", ROUGH_FEATHER),
+        ("tiles/di-6.npy", SMOOTH_FEATHER),
+    ] {
+        let image = read_image(&repo(name), &ReadOptions::default()).unwrap();
+        let bake = |options: RsgfOptions| {
+            let baker = Baker::builder()
+                .method(surftile::bank::Method::Rsgf)
+                .rsgf(options)
+                .build()
+                .unwrap();
+            baker.bake(&image, name, &mut |_| {}).unwrap()
+        };
+        let stochastic = RsgfOptions {
+            stochastic: true,
+            ..RsgfOptions::default()
+        };
+        let bank = bake(stochastic.clone());
+        let params = surftile::models::rsgf::check_bank(&bank, name).unwrap();
+        assert_eq!(params.feather_px, feather, "{name}");
+        // A ramp that is given wins; a lattice bank keeps the former default.
+        let given = bake(RsgfOptions {
+            feather_px: Some(2),
+            ..stochastic.clone()
+        });
+        let given = surftile::models::rsgf::check_bank(&given, name).unwrap();
+        assert_eq!(given.feather_px, 2, "{name}");
+        assert_eq!(
+            RsgfOptions::default().params((1, 0), (0, 1)).feather_px,
+            surftile::models::rsgf::DEFAULT_FEATHER
+        );
+        let surface = open(&bank, 0).unwrap();
+        let c = bank.header.channels;
+        let mut out = vec![0.0f32; n * n * c];
+        surface
+            .fill(&Region::new(0.0, 0.0, n, n), &mut out)
+            .unwrap();
+        let seams = seam_any_phase(&Raster::from_vec(n, n, c, out).unwrap(), 40);
+        eprintln!(
+            "{name}: ramp over {} px, worst seam {:.3} ({} {} of 40)",
+            2 * feather,
+            seams.worst,
+            seams.axis,
+            seams.offset
+        );
+        assert!(
+            (0.9..=1.15).contains(&seams.worst),
+            "{name}: seam score {:.3} at {} {} of the 40-px block",
+            seams.worst,
+            seams.axis,
+            seams.offset
+        );
+    }
 }
 
 /// A baked RSGF bank round-trips through bytes and opens as the same surface.

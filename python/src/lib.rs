@@ -787,7 +787,7 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
                 b
             }
             "feather" => {
-                rsgf.feather_px = count_param(k, &v)?;
+                rsgf.feather_px = Some(count_param(k, &v)?);
                 b
             }
             "stochastic" => {

@@ -9,7 +9,9 @@ use crate::analysis::translation::{
 };
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::Result;
-use crate::models::rsgf::{Join, Metric, RsgfModel, RsgfParams, RsgfSurface, mip_chain};
+use crate::models::rsgf::{
+    DEFAULT_FEATHER, Join, Metric, RsgfModel, RsgfParams, RsgfSurface, mip_chain,
+};
 use crate::raster::Raster;
 use crate::stream::{Region, Surface};
 
@@ -27,8 +29,10 @@ pub struct RsgfOptions {
     pub metric: Option<Metric>,
     /// How patches join (default: minimum-error cuts).
     pub join: Join,
-    /// Ramp half-width around a cut in pixels (default 2).
-    pub feather_px: usize,
+    /// Ramp half-width around a cut in pixels. None: [`DEFAULT_FEATHER`] on a lattice;
+    /// in stochastic mode, from the exemplar's roughness at the pixel scale
+    /// ([`stochastic_feather`]).
+    pub feather_px: Option<usize>,
     /// Stochastic mode: v₁ = (1, 0), v₂ = (0, 1), no estimation.
     pub stochastic: bool,
     /// In stochastic mode, map output values so that their histogram is the exemplar's
@@ -45,7 +49,7 @@ impl Default for RsgfOptions {
             tolerance_px: p.tolerance_px,
             metric: None,
             join: p.join,
-            feather_px: p.feather_px,
+            feather_px: None,
             stochastic: false,
             histogram: false,
         }
@@ -53,8 +57,27 @@ impl Default for RsgfOptions {
 }
 
 impl RsgfOptions {
-    /// The parameters on lattice (v1, v2).
+    /// The parameters on lattice (v1, v2), before the exemplar is known: a ramp not
+    /// given is [`DEFAULT_FEATHER`] (kept below the border).
     pub fn params(&self, v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
+        self.params_with(None, v1, v2)
+    }
+
+    /// The parameters on lattice (v1, v2) for exemplar `ex`, which sets the ramp of a
+    /// stochastic bank when none is given ([`stochastic_feather`]).
+    pub fn params_for(&self, ex: &Raster, v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
+        self.params_with(Some(ex), v1, v2)
+    }
+
+    fn params_with(&self, ex: Option<&Raster>, v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
+        let feather_px = self.feather_px.unwrap_or_else(|| {
+            let chosen = match ex {
+                Some(ex) if self.stochastic && self.join == Join::Cut => stochastic_feather(ex),
+                _ => DEFAULT_FEATHER,
+            };
+            // Below the border, as validation asks of a ramp that is given.
+            chosen.min(self.border_px.saturating_sub(1))
+        });
         RsgfParams {
             block_px: self.block_px,
             border_px: self.border_px,
@@ -65,7 +88,7 @@ impl RsgfOptions {
                 RsgfParams::new(v1, v2).metric
             }),
             join: self.join,
-            feather_px: self.feather_px,
+            feather_px,
             histogram: None,
             // Only cuts can keep the mirrored pixels out of the output; a linear blend
             // would show them across every overlap.
@@ -73,6 +96,82 @@ impl RsgfOptions {
             v1,
             v2,
         }
+    }
+}
+
+/// Pixel-scale roughness at and above which a stochastic bank's cuts ramp over
+/// [`ROUGH_FEATHER`] ([`stochastic_feather`]).
+pub const ROUGH_AT: f64 = 0.1;
+/// Ramp half-width of a stochastic bank on an exemplar rough at the pixel scale.
+pub const ROUGH_FEATHER: usize = 1;
+/// Ramp half-width of a stochastic bank on an exemplar smooth at the pixel scale.
+pub const SMOOTH_FEATHER: usize = 3;
+
+/// Roughness at the pixel scale: the mean squared difference of neighbouring pixels
+/// (both axes, every channel) over twice the variance (summed over channels). 1 for
+/// white noise, sin²(π/P) for a sine of period P px, 0 for a flat map.
+pub fn pixel_roughness(ex: &Raster) -> f64 {
+    let (w, h, c) = (ex.width, ex.height, ex.channels);
+    let mut var = 0.0;
+    for k in 0..c {
+        let n = (w * h) as f64;
+        let mean = ex
+            .data
+            .iter()
+            .skip(k)
+            .step_by(c)
+            .map(|&v| v as f64)
+            .sum::<f64>()
+            / n;
+        var += ex
+            .data
+            .iter()
+            .skip(k)
+            .step_by(c)
+            .map(|&v| (v as f64 - mean).powi(2))
+            .sum::<f64>()
+            / n;
+    }
+    let (mut dx, mut nx, mut dy, mut ny) = (0.0, 0usize, 0.0, 0usize);
+    for y in 0..h {
+        for x in 0..w {
+            let at = (y * w + x) * c;
+            for k in 0..c {
+                let v = ex.data[at + k] as f64;
+                if x + 1 < w {
+                    dx += (ex.data[at + c + k] as f64 - v).powi(2);
+                }
+                if y + 1 < h {
+                    dy += (ex.data[at + w * c + k] as f64 - v).powi(2);
+                }
+            }
+            nx += usize::from(x + 1 < w);
+            ny += usize::from(y + 1 < h);
+        }
+    }
+    let mean_sq = 0.5 * (dx / nx.max(1) as f64 + dy / ny.max(1) as f64);
+    if var > 0.0 {
+        mean_sq / (2.0 * var)
+    } else {
+        0.0
+    }
+}
+
+/// The cut ramp of a stochastic bank. A ramp averages the two patches across a cut.
+/// On a surface rough at the pixel scale, that averaging takes out the roughness it
+/// blends, so the block edges carry less gradient energy than the rest; on a smooth
+/// one, a short ramp leaves the step between the patches. Either shows as a seam at the
+/// block's own period. [`pixel_roughness`] ≥ [`ROUGH_AT`]: [`ROUGH_FEATHER`] (a 2-px
+/// ramp), else [`SMOOTH_FEATHER`] (6 px). The seven photos of `tests/data` read 0.18–0.41
+/// and the 27 measured height maps 0–0.06, except one noisy map (0.56). 1024², seeds 0
+/// and 1, worst seam at the 40-px block (docs/structure.md): grass 0.89 / 0.90 with a
+/// 4-px ramp, 0.95 / 0.94 with 2 px; di-6 (an AFM map) 1.21 / 1.19 with 4 px, 1.13 /
+/// 1.13 with 6 px.
+pub fn stochastic_feather(ex: &Raster) -> usize {
+    if pixel_roughness(ex) >= ROUGH_AT {
+        ROUGH_FEATHER
+    } else {
+        SMOOTH_FEATHER
     }
 }
 
@@ -88,7 +187,7 @@ const MAP_STEPS: usize = 64;
 /// 40-px block sits at 61 positions per axis of a 100-px exemplar (edges reflected,
 /// [`RsgfParams::reflect_edges`]), so an edge pixel is in 1 where a central one is in
 /// 40, and the output's histogram leans to the middle's. On the 100² dried-mud photo
-/// that is a W1 of 0.07 and a standard deviation of 0.89–0.90 of the exemplar's (512²);
+/// that is a W1 of 0.06–0.07 and a standard deviation of 0.90–0.91 of the exemplar's (512²);
 /// the map brings them to 0.016 and 0.99
 /// (`tests/rsgf.rs::a_histogram_map_restores_small_exemplars`). It is off by default:
 /// mapped values are no longer the exemplar's, and the patch figures pay for it
@@ -146,7 +245,7 @@ pub(crate) fn bake(
 ) -> Result<Bank> {
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     // Parameters that do not depend on the lattice fail before any analysis.
-    let probe = options.params((1, 0), (0, 1));
+    let probe = options.params_for(ex, (1, 0), (0, 1));
     probe.validate()?;
     probe.check_exemplar(w, h)?;
     let (v1, v2) = if options.stochastic {
@@ -174,7 +273,15 @@ pub(crate) fn bake(
             other => return Err(no_lattice(source, other, BAKE_WITHOUT_LATTICE)),
         }
     };
-    let params = options.params(v1, v2);
+    let params = options.params_for(ex, v1, v2);
+    if options.feather_px.is_none() && options.stochastic && options.join == Join::Cut {
+        let g = pixel_roughness(ex);
+        progress(&format!(
+            "cut ramp of {} px: roughness at the pixel scale {g:.3} ({} {ROUGH_AT}; pass --feather to choose)",
+            2 * params.feather_px,
+            if g >= ROUGH_AT { "≥" } else { "<" }
+        ));
+    }
     // Building the model checks the lattice against the exemplar, as loading will.
     let model = RsgfModel::new(ex, &params)?;
     // The bank keeps the exemplar's own chain (the model's may be extended by its
