@@ -21,8 +21,9 @@ mod common;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use surftile::Raster;
+use surftile::bake::rsgf::RsgfOptions;
 use surftile::io::{ReadOptions, read_image};
-use surftile::models::rsgf::{RsgfParams, RsgfSurface};
+use surftile::models::rsgf::RsgfSurface;
 use surftile::models::synth::SynthParams;
 use surftile::models::synth::SynthSurface;
 use surftile::models::synth::synth_model;
@@ -80,13 +81,21 @@ fn bench(c: &mut Criterion) {
             px[0]
         })
     });
-    let rsgf = RsgfParams::stochastic();
+    // What `bake --method rsgf --stochastic` (and `auto` on a photo) makes: the options'
+    // parameters, with the cut ramp chosen from the exemplar's roughness.
+    let options = RsgfOptions {
+        stochastic: true,
+        ..RsgfOptions::default()
+    };
     g.bench_function("rsgf_bake_and_fill_1024_rgb", |b| {
         b.iter(|| {
+            let rsgf = options.params_for(black_box(&ex), (1, 0), (0, 1));
             let s = RsgfSurface::new(black_box(&ex), &rsgf, 1).unwrap();
             s.fill(&region, &mut out).unwrap();
         })
     });
+    let rsgf = options.params_for(&ex, (1, 0), (0, 1));
+    assert_eq!(rsgf.feather_px, surftile::bake::rsgf::ROUGH_FEATHER);
     let rsgf_surface = RsgfSurface::new(&ex, &rsgf, 1).unwrap();
     let mut k = 0u64;
     g.bench_function("rsgf_fill_1024_rgb_2_threads", |b| {
