@@ -207,6 +207,26 @@ fn render_writes_exr_and_normal_maps() {
 
 /// An EXR whose header claims a 20000² layer over a few kilobytes is refused in one
 /// line before any pixel is decoded.
+/// A single-resolution tiled file whose tile chunk claims resolution level (0, 1): a
+/// fuzz finding (`fuzz/seeds/exr/tile-of-another-level.exr`) on which the exr crate's
+/// debug assertion fired. It is refused before decoding, with a one-line error.
+#[test]
+fn exr_with_a_tile_of_another_level_is_refused() {
+    let bytes = std::fs::read(common::repo("fuzz/seeds/exr/tile-of-another-level.exr")).unwrap();
+    let e = surftile::io::read_image_bytes(
+        &bytes,
+        surftile::io::Format::Exr,
+        "lying.exr",
+        &ReadOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("lying.exr") && e.contains("resolution level (0, 1)") && !e.contains('\n'),
+        "{e}"
+    );
+}
+
 #[test]
 fn exr_claiming_a_huge_layer_is_refused() {
     let dir = tempfile::tempdir().unwrap();

@@ -39,6 +39,36 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
             4 * super::MAX_IMAGE_PIXELS
         )));
     }
+    // Multi-resolution files are refused, and every tile chunk must then be of level
+    // (0, 0), before decoding: the exr crate files a chunk by the level the chunk
+    // itself claims, so a lying one hands a line of another level to the reader of
+    // the first (a fuzz finding: the crate's debug assertion fires, and a release
+    // build would place the line by the wrong level's geometry). Heights are written
+    // single-resolution.
+    if let exr::meta::BlockDescription::Tiles(tiles) = &header.blocks {
+        if tiles.level_mode != exr::meta::attribute::LevelMode::Singular {
+            return Err(bad(format!(
+                "a multi-resolution ({:?}) OpenEXR image; surftile reads single-resolution images",
+                tiles.level_mode
+            )));
+        }
+        let chunks = exr::block::read(Cursor::new(bytes), false)
+            .and_then(|r| r.all_chunks(false))
+            .map_err(|e| bad(format!("OpenEXR: {e}")))?;
+        for chunk in chunks {
+            let chunk = chunk.map_err(|e| bad(format!("OpenEXR: {e}")))?;
+            if let exr::block::chunk::CompressedBlock::Tile(t) = &chunk.compressed_block
+                && t.coordinates.level_index != Vec2(0, 0)
+            {
+                let l = t.coordinates.level_index;
+                return Err(bad(format!(
+                    "a tile of resolution level ({}, {}) in a single-resolution OpenEXR image",
+                    l.x(),
+                    l.y()
+                )));
+            }
+        }
+    }
     if header.deep {
         return Err(bad(
             "a deep OpenEXR image; surftile reads flat images".into()
