@@ -5,12 +5,15 @@
 // The heights come as a storage buffer of (width + 2) × (height + 2) f32 values: the
 // screen's samples with a one-sample margin, so every pixel has the four neighbours of
 // its central differences. NaN marks a sample not yet available (a page still being
-// generated); it is drawn as a neutral grey.
+// generated); it is drawn as a neutral grey. In the colour view (mode 2) each value's
+// bits are a colour's 8-bit levels r | g << 8 | b << 16 (`pack_colour` in
+// src/view/mod.rs), which are never a NaN's. The buffer is read as u32 so that no
+// value is touched as a float before it is known to be one.
 
 struct ShadeParams {
     width: u32,
     height: u32,
-    // 0 height, 1 shaded.
+    // 0 height, 1 shaded, 2 colour.
     mode: u32,
     pad0: u32,
     // Heights mapped to black and white in the height view.
@@ -29,7 +32,7 @@ struct ShadeParams {
 }
 
 @group(0) @binding(0) var<uniform> sp: ShadeParams;
-@group(0) @binding(1) var<storage, read> heights: array<f32>;
+@group(0) @binding(1) var<storage, read> heights: array<u32>;
 
 fn normal_from_gradient(gx: f32, gy: f32, exaggeration: f32) -> vec3<f32> {
     return normalize(vec3<f32>(-gx * exaggeration, -gy * exaggeration, 1.0));
@@ -51,7 +54,12 @@ fn height_grey(h: f32, lo: f32, hi: f32) -> f32 {
 }
 
 fn height_at(x: u32, y: u32) -> f32 {
-    return heights[y * (sp.width + 2u) + x];
+    return bitcast<f32>(heights[y * (sp.width + 2u) + x]);
+}
+
+// The colour packed in a sample's bits (mode 2).
+fn unpack_colour(bits: u32) -> vec3<f32> {
+    return unpack4x8unorm(bits).xyz;
 }
 
 // One triangle that covers the screen.
@@ -66,10 +74,15 @@ fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
 fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let x = min(u32(pos.x), sp.width - 1u) + 1u;
     let y = min(u32(pos.y), sp.height - 1u) + 1u;
-    let h = height_at(x, y);
-    if (h != h) {
+    let bits = heights[y * (sp.width + 2u) + x];
+    // A NaN: every exponent bit set and a non-zero mantissa.
+    if ((bits & 0x7f800000u) == 0x7f800000u && (bits & 0x007fffffu) != 0u) {
         return vec4<f32>(0.25, 0.25, 0.25, 1.0);
     }
+    if (sp.mode == 2u) {
+        return vec4<f32>(unpack_colour(bits), 1.0);
+    }
+    let h = bitcast<f32>(bits);
     var g = 0.0;
     if (sp.mode == 0u) {
         g = height_grey(h, sp.lo, sp.hi);

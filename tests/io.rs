@@ -36,6 +36,65 @@ fn png16_round_trip_keeps_heights_to_one_level_and_spacing() {
     }
 }
 
+/// The 16-bit levels of a PNG, decoded by the png crate itself (no metadata applied).
+fn png16_levels(path: &Path) -> (png::ColorType, Vec<u16>) {
+    let dec = png::Decoder::new(std::io::BufReader::new(File::open(path).unwrap()));
+    let mut reader = dec.read_info().unwrap();
+    let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.bit_depth, png::BitDepth::Sixteen);
+    let levels = buf[..info.buffer_size()]
+        .chunks_exact(2)
+        .map(|b| u16::from_be_bytes([b[0], b[1]]))
+        .collect();
+    (info.color_type, levels)
+}
+
+/// A colour synthesis of an 8-bit photo (values 0–255) is written on the photo's own
+/// scale, so any viewer shows the photo's colours: level = v / 255 · 65535, not stretched
+/// to its own range (which turned a pale lavender photo deep blue). Unit colour uses 1,
+/// 16-bit colour 65535; heights, and colour outside [0, 65535], stay min–max scaled.
+/// Every case reads back within half a level.
+#[test]
+fn colour_pngs_keep_their_levels_and_heights_are_stretched() {
+    let dir = tempfile::tempdir().unwrap();
+    let pale: Vec<f32> = (0..24).map(|i| 199.0 + 2.25 * i as f32).collect(); // 199 … 250.75
+    for (name, c, scale, full) in [
+        ("rgb8.png", 3, 1.0f32, Some(255.0f32)),
+        ("unit.png", 3, 1.0 / 255.0, Some(1.0)),
+        ("rgb16.png", 3, 257.0, Some(65535.0)),
+        ("wide.png", 3, 300.0, None),
+        ("grey.png", 1, 1.0, None),
+    ] {
+        let data: Vec<f32> = pale.iter().map(|v| v * scale).collect();
+        let r = Raster::from_vec(8 / c.min(2), 3 * c.min(2) / c, c, data).unwrap();
+        let p = dir.path().join(name);
+        write_heights(&p, &r, None).unwrap();
+        let (colour, levels) = png16_levels(&p);
+        let want = if c == 3 {
+            png::ColorType::Rgb
+        } else {
+            png::ColorType::Grayscale
+        };
+        assert_eq!(colour, want, "{name}");
+        let (lo, hi) = match full {
+            Some(f) => (0.0, f),
+            None => (199.0 * scale, 250.75 * scale),
+        };
+        for (v, &l) in r.data.iter().zip(&levels) {
+            let expect = ((v - lo) as f64 / (hi - lo) as f64 * 65535.0).round();
+            assert_eq!(l as f64, expect, "{name}: {v}");
+        }
+        let back = read_image(&p, &ReadOptions::default()).unwrap().raster;
+        for (a, b) in r.data.iter().zip(&back.data) {
+            assert!(
+                (a - b).abs() <= 0.5 * (hi - lo) / 65535.0 * 1.001 + 1e-4 * scale,
+                "{name}: {a} vs {b}"
+            );
+        }
+    }
+}
+
 #[test]
 fn tiff_and_npy_round_trips_are_exact() {
     let dir = tempfile::tempdir().unwrap();

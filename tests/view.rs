@@ -454,3 +454,57 @@ fn the_mask_view_shows_the_layer_ids() {
     assert!(ok, "{err}");
     assert!(err.contains("no mask"), "{err}");
 }
+
+/// The height view of a colour bank shows its colours (`shaders/shade.wgsl` mode 2): an
+/// RSGF bank of the 8-bit RGB mud photo, headless, matches the CPU fill of the same view
+/// on the photo's own scale (level = v, 0–255, as `render` writes it) within 1 level in
+/// every channel, and the frame is in colour (its channel means differ by more than 5
+/// levels, as the photo's do). Before, the view showed channel 0 on a grey ramp.
+#[test]
+fn the_height_view_of_a_colour_bank_shows_its_colours() {
+    if no_adapter("the colour view check") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let exemplar = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gimp-dried-mud.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_surftile"))
+        .args([
+            "bake",
+            "--method",
+            "rsgf",
+            "--stochastic",
+            "--out",
+            "b.bank",
+        ])
+        .arg(&exemplar)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let shot = headless_shot(dir.path(), "b.bank", "settle", &[]);
+    let bank = surftile::bank::Bank::read(&dir.path().join("b.bank")).unwrap();
+    let cpu = open(&bank, 3).unwrap();
+    let (w, h) = (96usize, 64usize);
+    let mut rgb = vec![0.0f32; w * h * 3];
+    cpu.fill(&Region::new(-40.0, 20.0, w, h), &mut rgb).unwrap();
+    let mut worst = 0i32;
+    let mut means = [0.0f64; 3];
+    for (i, px) in rgb.chunks_exact(3).enumerate() {
+        for ch in 0..3 {
+            let want = px[ch].clamp(0.0, 255.0).round() as i32;
+            let got = shot[i * 4 + ch] as i32;
+            worst = worst.max((got - want).abs());
+            means[ch] += got as f64 / (w * h) as f64;
+        }
+    }
+    eprintln!("colour view vs CPU: max {worst} levels; channel means {means:.1?}");
+    assert!(worst <= 1, "colour view off by {worst} levels");
+    assert!(
+        (means[0] - means[2]).abs() > 5.0 || (means[0] - means[1]).abs() > 5.0,
+        "a grey frame: channel means {means:?}"
+    );
+}

@@ -105,14 +105,21 @@ fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
     Ok(image)
 }
 
-/// 16-bit PNG of `raster` (1 or 3 channels), min–max scaled over all samples; the range
-/// and spacing go into a `surftile` tEXt chunk as JSON.
+/// 16-bit PNG of `raster` (1 or 3 channels); the range and spacing go into a
+/// `surftile` tEXt chunk as JSON. Heights (one channel) are min–max scaled over all
+/// samples. Colour (three channels) keeps its levels where it can, so that a synthesis
+/// of a photo looks like the photo in any viewer: [0, full] maps to [0, 65535] with full
+/// the smallest of 1, 255 and 65535 that holds every sample ([`super::colour_full_scale`]);
+/// colour outside [0, 65535] is min–max scaled like heights.
 pub(super) fn write16(w: &mut impl Write, raster: &Raster, meta: &super::WriteMeta) -> Result<()> {
     let (lo, hi) = raster
         .data
         .iter()
         .fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
-    write16_in(w, raster, meta, lo, hi)
+    match super::colour_full_scale(raster.channels, lo, hi) {
+        Some(full) => write16_in(w, raster, meta, 0.0, full),
+        None => write16_in(w, raster, meta, lo, hi),
+    }
 }
 
 /// [`write16`] scaled from the range [lo, hi] given (which must hold every sample), so

@@ -15,7 +15,9 @@
 //! - **Display.** `shaders/shade.wgsl` draws the heights as a grey ramp (the source's
 //!   mean ± 3σ, from a 256² sample at the origin) or Phong-shaded (seed 001,
 //!   eqs. (1)–(4)) with the source's material (a model's, else the default). Colour
-//!   banks show their first channel.
+//!   banks (three channels, levels within [0, 65535]) show their colours in the
+//!   height view, on the scale of their levels ([`crate::io::colour_full_scale`]:
+//!   an 8-bit photo's 0–255 as black to full), and their first channel shaded.
 //! - **Controls.** Drag or arrow keys pan; the wheel (or `+`/`-`) zooms about the
 //!   cursor, through the mip levels; `s`/`S` next/previous seed; `h` height or shaded
 //!   view; `l`/`k` light azimuth/elevation; `m` mask view (the layer ids of an
@@ -173,6 +175,9 @@ pub struct Source {
     cpu: Arc<dyn Surface>,
     fill: Fill,
     range: (f32, f32),
+    /// A colour source's full scale (see [`crate::io::colour_full_scale`]): the height
+    /// view shows its colours.
+    colour: Option<f32>,
     /// Slope exaggeration per surface pixel for the shaded view.
     exaggeration: f32,
     /// Weights of the shaded view (a model's material).
@@ -258,6 +263,7 @@ impl Source {
         };
         let (range, exaggeration) = display_scales(cpu.as_ref())?;
         Ok(Source {
+            colour: colour_scale(cpu.as_ref())?,
             cpu,
             fill,
             range,
@@ -290,15 +296,22 @@ impl Source {
         }
     }
 
+    /// A colour source's full scale, if it is one.
+    pub fn colour(&self) -> Option<f32> {
+        self.colour
+    }
+
     /// Heights (channel 0) of `width × height` samples `step` apart from (x, y) into
-    /// `out`: from the GPU, or composed from resident pages (NaN where none is yet).
-    /// Never waits for a page. Returns whether every sample came at full detail.
+    /// `out`, or with `colour` each sample's colour packed by [`pack_colour`]: from the
+    /// GPU, or composed from resident pages (NaN where none is yet). Never waits for a
+    /// page. Returns whether every sample came at full detail.
     pub fn heights(
         &self,
         gpu: &Gpu,
         region: &Region,
         out: &mut Vec<f32>,
         scratch: &mut Vec<f32>,
+        colour: Option<f32>,
     ) -> Result<bool> {
         out.clear();
         out.resize(region.len(), f32::NAN);
@@ -312,12 +325,15 @@ impl Source {
                     scratch.resize(region.len() * c, 0.0);
                     g.fill(&gpu.device, &gpu.queue, region, scratch)?;
                     for (o, s) in out.iter_mut().zip(scratch.chunks_exact(c)) {
-                        *o = s[0];
+                        *o = match colour {
+                            Some(full) if c == 3 => pack_colour(s, full),
+                            _ => s[0],
+                        };
                     }
                 }
                 Ok(true)
             }
-            Fill::Pages(p) => Ok(compose(p, region, out)),
+            Fill::Pages(p) => Ok(compose_colour(p, region, out, colour)),
         }
     }
 }
@@ -338,6 +354,17 @@ fn page_view(region: &Region) -> View {
 /// coarser level resident; NaN where none is. True if every sample was at the view's
 /// level.
 pub fn compose(pages: &PageStreamer, region: &Region, out: &mut [f32]) -> bool {
+    compose_colour(pages, region, out, None)
+}
+
+/// [`compose`], with `colour` (a three-channel source's full scale) each sample's
+/// colour packed by [`pack_colour`] instead of channel 0.
+pub fn compose_colour(
+    pages: &PageStreamer,
+    region: &Region,
+    out: &mut [f32],
+    colour: Option<f32>,
+) -> bool {
     let view = page_view(region);
     pages.request(&view);
     let level = pages.level_for(&view);
@@ -351,7 +378,7 @@ pub fn compose(pages: &PageStreamer, region: &Region, out: &mut [f32]) -> bool {
             .chunks_mut(band * region.width)
             .enumerate()
             .map(|(k, part)| {
-                scope.spawn(move || compose_rows(pages, region, level, k * band, part))
+                scope.spawn(move || compose_rows(pages, region, level, k * band, part, colour))
             })
             .collect();
         jobs.into_iter()
@@ -367,6 +394,7 @@ fn compose_rows(
     level: u32,
     r0: usize,
     out: &mut [f32],
+    colour: Option<f32>,
 ) -> bool {
     let size = pages.page_size() as i64;
     let mut found: HashMap<PageKey, Option<Arc<Page>>> = HashMap::new();
@@ -402,10 +430,38 @@ fn compose_rows(
             };
             let lx = (kx - page.key.px * size).clamp(0, size - 1) as usize;
             let ly = (ky - page.key.py * size).clamp(0, size - 1) as usize;
-            *o = page.data[(ly * page.size + lx) * page.channels];
+            let at = (ly * page.size + lx) * page.channels;
+            *o = match colour {
+                Some(full) if page.channels == 3 => pack_colour(&page.data[at..at + 3], full),
+                _ => page.data[at],
+            };
         }
     }
     complete
+}
+
+/// A colour sample (three channels on the scale `full`) as 8-bit levels
+/// r | g << 8 | b << 16 in the bits of an f32, for the height view of
+/// `shaders/shade.wgsl` (mode 2, `unpack_colour`). The top byte is zero, so the bits are
+/// never a NaN's, which marks a missing sample.
+pub fn pack_colour(rgb: &[f32], full: f32) -> f32 {
+    let level = |v: f32| ((v / full).clamp(0.0, 1.0) * 255.0).round() as u32;
+    f32::from_bits(level(rgb[0]) | level(rgb[1]) << 8 | level(rgb[2]) << 16)
+}
+
+/// A colour source's full scale ([`crate::io::colour_full_scale`]) over a 64² sample at
+/// the origin; none for heights.
+fn colour_scale(s: &dyn Surface) -> Result<Option<f32>> {
+    if s.channels() != 3 {
+        return Ok(None);
+    }
+    let n = 64;
+    let mut v = vec![0.0f32; n * n * 3];
+    s.fill(&Region::new(0.0, 0.0, n, n), &mut v)?;
+    let (lo, hi) = v
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, u), &x| (l.min(x), u.max(x)));
+    Ok(crate::io::colour_full_scale(3, lo, hi))
 }
 
 /// The grey ramp (mean ± 3σ) and the shading's slope exaggeration (rms slope 0.5 per
@@ -977,8 +1033,14 @@ impl Session {
         self.complete = match mask {
             Some(complete) => complete,
             None => {
-                self.source
-                    .heights(&self.gpu, &region, &mut self.heights, &mut self.scratch)?
+                let colour = self.source.colour.filter(|_| self.mode == Mode::Height);
+                self.source.heights(
+                    &self.gpu,
+                    &region,
+                    &mut self.heights,
+                    &mut self.scratch,
+                    colour,
+                )?
             }
         };
         // The mask view: layer ids on a grey ramp from 0 (black) to the highest id.
@@ -999,7 +1061,12 @@ impl Session {
         let params = ShadeParams {
             width: w,
             height: h,
-            mode: (self.mode == Mode::Shaded) as u32,
+            // 0 height (grey), 1 shaded, 2 colour (a colour source's height view).
+            mode: match self.mode {
+                Mode::Shaded => 1,
+                Mode::Height if self.source.colour.is_some() => 2,
+                _ => 0,
+            },
             lo,
             hi,
             // Slopes come per sample, `scale` surface pixels apart.
