@@ -20,6 +20,17 @@
 //!    test photos. Above [`EDGE_RATIO`], RSGF in stochastic mode is taken (every
 //!    exemplar position a candidate, gaps matched by NCC, blocks joined along
 //!    minimum-error cuts), or `synth` where the exemplar cannot hold an RSGF patch.
+//! 3. **Photos under the bar.** The edge ratio does not see fine, sparse objects: the
+//!    bright scratches of a photo of ice read 1.24, slate 0.98, wood and walnut photos
+//!    1.14–1.24 (GIMP patterns outside the structure figures' seven), against 1.06–1.22
+//!    for the sandblasted al3d-1 and AFM di-6 maps, so no bar on it separates them.
+//!    What does is what the exemplar is: a **photo** ([`is_photo`]: colour, or grey
+//!    in 8-bit levels) rather than a height map (floats, or 16-bit PNG). Under the bar,
+//!    a height map gets rpn as above; a photo gets rpn only if one RPN realisation of a
+//!    128² crop scores at least as well on coherence (the structure figures' patch
+//!    measure) as a trial of the structured method of the same size, and otherwise that
+//!    method. On the four photos above RPN scores 0.95–1.09 and RSGF 0.19–0.29 (paper,
+//!    8-bit grey: 4.69 against 0.96), so none gets rpn. The trial costs about 0.5 s.
 //!
 //! **Why RSGF rather than synth for structured stochastic exemplars.** Both stream in
 //! any split; both copy exemplar pieces. On the seven test photos at 1024² (same run,
@@ -31,7 +42,8 @@
 //! smear small exemplars (the 127 × 80 rocks photo loses its dark joints: standard
 //! deviation 0.81), stays available by name.
 //!
-//! The structure figures' coherence was tried first and cannot tell them apart: RPN of
+//! The structure figures' coherence was tried first as the only test and cannot tell
+//! photos from height maps (hence rule 3's use of it on photos alone): RPN of
 //! the gravel photo scores 1.01 (its 8×8 patches are as far from the exemplar as the
 //! exemplar's halves are from each other: gravel is busy), the al3d-1 map 1.87.
 //! (Figures from `cargo test --release --test auto -- --nocapture`.) Nor can
@@ -71,9 +83,23 @@ pub struct AutoChoice {
     pub reason: String,
 }
 
+/// Whether an exemplar as read (before preprocessing) is a photo rather than a height
+/// map: colour (three or more channels), or grey levels as an 8-bit file holds them
+/// (every sample an integer in 0–255). Height maps come as floats (instrument files,
+/// X3P, npy, TIFF) or as 16-bit PNG; an 8-bit height map counts as a photo.
+pub fn is_photo(raw: &Raster) -> bool {
+    raw.channels >= 3
+        || raw
+            .data
+            .iter()
+            .all(|&v| (0.0..=255.0).contains(&v) && v.fract() == 0.0)
+}
+
 /// Picks the method for a preprocessed exemplar `ex` (finite values; see the module
-/// notes). `seed` drives the RPN realisation.
-pub fn choose_method(ex: &Raster, seed: u64) -> AutoChoice {
+/// notes). `seed` drives the RPN realisation. `photo` ([`is_photo`] of the exemplar as
+/// read): a Gaussian-like photo gets rpn only where one RPN realisation scores at least
+/// as well on coherence as a trial of the structured method (see the module notes).
+pub fn choose_method(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
     match detect(ex) {
         Detection::Lattice(p) if p.strength >= STRONG_LATTICE => AutoChoice {
             method: Method::Roller,
@@ -100,28 +126,19 @@ pub fn choose_method(ex: &Raster, seed: u64) -> AutoChoice {
         },
         Detection::Stochastic => {
             let ratio = edge_ratio(ex, seed);
-            if ratio <= EDGE_RATIO {
-                AutoChoice {
-                    method: Method::Rpn,
-                    stochastic: false,
-                    reason: format!(
-                        "stochastic and Gaussian-like: random phases keep its edges (edge ratio {ratio:.2} ≤ {EDGE_RATIO}): rpn"
-                    ),
-                }
-            } else {
-                let objects = format!(
-                    "stochastic with objects whose edges random phases destroy (edge ratio {ratio:.2} > {EDGE_RATIO})"
-                );
-                let rsgf = RsgfParams::stochastic();
-                let patch = rsgf.block_px + 2 * rsgf.border_px;
-                // A whole patch must fit, although reflected edges would let a block
-                // alone do: fewer than 2·o + 1 positions per axis repeat too often.
-                if patch <= ex.width.min(ex.height) && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS {
+            let rsgf = RsgfParams::stochastic();
+            let patch = rsgf.block_px + 2 * rsgf.border_px;
+            // A whole patch must fit, although reflected edges would let a block alone
+            // do: fewer than 2·o + 1 positions per axis repeat too often.
+            let rsgf_fits =
+                patch <= ex.width.min(ex.height) && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS;
+            let structured = |why: String| {
+                if rsgf_fits {
                     AutoChoice {
                         method: Method::Rsgf,
                         stochastic: true,
                         reason: format!(
-                            "{objects}: rsgf `stochastic` (patches copied whole, joined along minimum-error cuts)"
+                            "{why}: rsgf `stochastic` (patches copied whole, joined along minimum-error cuts)"
                         ),
                     }
                 } else {
@@ -129,14 +146,117 @@ pub fn choose_method(ex: &Raster, seed: u64) -> AutoChoice {
                         method: Method::Synth,
                         stochastic: false,
                         reason: format!(
-                            "{objects}, and no room for rsgf's {patch}-px patches in {}×{}: synth",
+                            "{why}, and no room for rsgf's {patch}-px patches in {}×{}: synth",
                             ex.width, ex.height
                         ),
                     }
                 }
+            };
+            if ratio > EDGE_RATIO {
+                return structured(format!(
+                    "stochastic with objects whose edges random phases destroy (edge ratio {ratio:.2} > {EDGE_RATIO})"
+                ));
+            }
+            let gaussian = format!(
+                "stochastic and Gaussian-like: random phases keep its edges (edge ratio {ratio:.2} ≤ {EDGE_RATIO})"
+            );
+            if !photo {
+                return AutoChoice {
+                    method: Method::Rpn,
+                    stochastic: false,
+                    reason: format!("{gaussian}: rpn"),
+                };
+            }
+            let name = if rsgf_fits { "rsgf" } else { "synth" };
+            match trial_coherence(ex, seed, rsgf_fits) {
+                Some((rpn, other)) if rpn <= other => AutoChoice {
+                    method: Method::Rpn,
+                    stochastic: false,
+                    reason: format!(
+                        "{gaussian}, a photo, and random phases as coherent as {name} in a trial (coherence {rpn:.2} ≤ {other:.2}): rpn"
+                    ),
+                },
+                Some((rpn, other)) => structured(format!(
+                    "{gaussian}, but a photo whose objects random phases lose: coherence of a trial {other:.2} with {name} against {rpn:.2} with rpn"
+                )),
+                None => structured(format!(
+                    "{gaussian}, but a photo, and the coherence trial could not run"
+                )),
             }
         }
     }
+}
+
+/// Side of the trials of [`trial_coherence`], at most.
+const TRIAL_SIDE: usize = 128;
+
+/// Coherence ([`crate::stats::structure::coherence_completeness`]) against `ex` of one
+/// RPN realisation of its centred crop (at most [`TRIAL_SIDE`]², every channel under
+/// the same random phases, each matched back to the crop's histogram) and of a
+/// synthesis of the same size by the structured method: stochastic RSGF with the
+/// parameters `bake` gives it where `rsgf` (its patches fit), else synth with its
+/// defaults. `None` if the structured trial cannot run.
+fn trial_coherence(ex: &Raster, seed: u64, rsgf: bool) -> Option<(f64, f64)> {
+    use crate::stats::structure::coherence_completeness;
+    let (w, h, c) = (
+        ex.width.min(TRIAL_SIDE),
+        ex.height.min(TRIAL_SIDE),
+        ex.channels,
+    );
+    let (x0, y0) = ((ex.width - w) / 2, (ex.height - h) / 2);
+    let planes: Vec<Vec<f64>> = (0..c)
+        .map(|ch| {
+            (0..w * h)
+                .map(|i| ex.data[((y0 + i / w) * ex.width + x0 + i % w) * c + ch] as f64)
+                .collect()
+        })
+        .collect();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let noise = random_phase_noise(&planes, w, h, &mut rng);
+    let mut rpn = vec![0.0f32; w * h * c];
+    for (ch, (plane, n)) in planes.iter().zip(&noise).enumerate() {
+        for (i, v) in histogram_matched(plane, n).into_iter().enumerate() {
+            rpn[i * c + ch] = v as f32;
+        }
+    }
+    let rpn = Raster::from_vec(w, h, c, rpn).ok()?;
+    let other = if rsgf {
+        let options = crate::bake::rsgf::RsgfOptions {
+            stochastic: true,
+            ..Default::default()
+        };
+        let params = options.params_for(ex, (1, 0), (0, 1));
+        crate::models::rsgf::RsgfModel::new(ex, &params)
+            .ok()?
+            .synthesize(seed as u32, w, h)
+    } else {
+        use crate::stream::Surface;
+        let model = crate::models::synth::synth_model(ex, &Default::default()).ok()?;
+        let surface = crate::models::synth::SynthSurface::new(model, seed as u32);
+        let mut v = vec![0.0f32; w * h * c];
+        surface
+            .fill(&crate::stream::Region::new(0.0, 0.0, w, h), &mut v)
+            .ok()?;
+        Raster::from_vec(w, h, c, v).ok()?
+    };
+    Some((
+        coherence_completeness(ex, &rpn).0,
+        coherence_completeness(ex, &other).0,
+    ))
+}
+
+/// `noise` with the values of `plane` in its rank order (histogram matching, as the
+/// bank's T⁻¹ maps RPN back to the exemplar's histogram).
+fn histogram_matched(plane: &[f64], noise: &[f64]) -> Vec<f64> {
+    let mut sorted = plane.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mut order: Vec<usize> = (0..noise.len()).collect();
+    order.sort_by(|&a, &b| noise[a].total_cmp(&noise[b]));
+    let mut matched = vec![0.0; noise.len()];
+    for (rank, &i) in order.iter().enumerate() {
+        matched[i] = quantile(&sorted, (rank as f64 + 0.5) / noise.len() as f64);
+    }
+    matched
 }
 
 /// Kurtosis of the x and y differences of a row-major `w × h` plane, averaged.
@@ -184,13 +304,6 @@ pub fn edge_ratio(ex: &Raster, seed: u64) -> f64 {
         .collect();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let noise = random_phase_noise(std::slice::from_ref(&grey), w, h, &mut rng).remove(0);
-    let mut sorted = grey.clone();
-    sorted.sort_by(f64::total_cmp);
-    let mut order: Vec<usize> = (0..noise.len()).collect();
-    order.sort_by(|&a, &b| noise[a].total_cmp(&noise[b]));
-    let mut matched = vec![0.0; noise.len()];
-    for (rank, &i) in order.iter().enumerate() {
-        matched[i] = quantile(&sorted, (rank as f64 + 0.5) / noise.len() as f64);
-    }
+    let matched = histogram_matched(&grey, &noise);
     difference_kurtosis(&grey, w, h) / difference_kurtosis(&matched, w, h)
 }

@@ -454,7 +454,8 @@ impl Baker {
         source: &str,
     ) -> Result<crate::bake::auto::AutoChoice> {
         let (ex, _) = self.preprocess(image, source)?;
-        Ok(crate::bake::auto::choose_method(&ex, self.seed))
+        let photo = crate::bake::auto::is_photo(&image.raster);
+        Ok(crate::bake::auto::choose_method(&ex, self.seed, photo))
     }
 
     /// Bakes a blend bank from `image`. `source` names it in errors and in the bank;

@@ -90,9 +90,10 @@ pub enum Method {
     /// Parallel controllable texture synthesis on exemplar coordinates (Lefebvre &
     /// Hoppe 2005, appearance space 2006): structure kept, streamed in any split.
     Synth,
-    /// Picks one from the exemplar and says why: a lattice → roller or rsgf,
-    /// Gaussian-like → rpn, structured stochastic → synth. Bakes only; a bank records
-    /// the method picked.
+    /// Picks one from the exemplar and says why: a lattice → roller or rsgf, a
+    /// Gaussian-like height map → rpn, structured stochastic (or a photo that rpn
+    /// scores worse on coherence) → rsgf --stochastic (synth if too small). Bakes only;
+    /// a bank records the method picked.
     Auto,
 }
 
