@@ -57,10 +57,20 @@ fn png16_levels(path: &Path) -> (png::ColorType, Vec<u16>) {
 /// Every case reads back within half a level.
 #[test]
 fn colour_pngs_keep_their_levels_and_heights_are_stretched() {
+    use surftile::io::colour_full_scale;
+    let above = |v: f32| f32::from_bits(v.to_bits() + 1);
+    assert_eq!(colour_full_scale(3, 0.0, above(255.0)), Some(255.0));
+    assert_eq!(colour_full_scale(3, 0.0, 255.1), Some(65535.0));
+    assert_eq!(colour_full_scale(3, 0.0, above(1.0)), Some(1.0));
+    assert_eq!(colour_full_scale(3, -0.5, 200.0), None);
+    assert_eq!(colour_full_scale(3, 0.0, 70000.0), None);
+    assert_eq!(colour_full_scale(1, 0.0, 200.0), None);
     let dir = tempfile::tempdir().unwrap();
     let pale: Vec<f32> = (0..24).map(|i| 199.0 + 2.25 * i as f32).collect(); // 199 … 250.75
     for (name, c, scale, full) in [
         ("rgb8.png", 3, 1.0f32, Some(255.0f32)),
+        // Blending two 255s in f32 can give 255.00002: still the 8-bit scale.
+        ("overshoot.png", 3, 255.00002 / 250.75, Some(255.0)),
         ("unit.png", 3, 1.0 / 255.0, Some(1.0)),
         ("rgb16.png", 3, 257.0, Some(65535.0)),
         ("wide.png", 3, 300.0, None),
@@ -82,13 +92,14 @@ fn colour_pngs_keep_their_levels_and_heights_are_stretched() {
             None => (199.0 * scale, 250.75 * scale),
         };
         for (v, &l) in r.data.iter().zip(&levels) {
-            let expect = ((v - lo) as f64 / (hi - lo) as f64 * 65535.0).round();
+            let expect = ((v - lo) as f64 / (hi - lo) as f64).min(1.0) * 65535.0;
+            let expect = expect.round();
             assert_eq!(l as f64, expect, "{name}: {v}");
         }
         let back = read_image(&p, &ReadOptions::default()).unwrap().raster;
         for (a, b) in r.data.iter().zip(&back.data) {
             assert!(
-                (a - b).abs() <= 0.5 * (hi - lo) / 65535.0 * 1.001 + 1e-4 * scale,
+                (a.min(hi) - b).abs() <= 0.5 * (hi - lo) / 65535.0 * 1.001 + 1e-4 * scale,
                 "{name}: {a} vs {b}"
             );
         }

@@ -475,16 +475,23 @@ pub fn read_image_bytes(
 
 /// The full scale of a colour raster's levels: 1 (unit colour, as float images hold
 /// it), 255 (an 8-bit photo's levels, as the PNG reader gives them) or 65535 (16-bit),
-/// the smallest that holds every sample of [lo, hi]; none for heights (not three
-/// channels) or colour outside [0, 65535]. A 16-bit PNG maps [0, full] to its levels,
-/// and the viewer shows [0, full] as black to full intensity, so a synthesis of a photo
-/// shows the photo's colours.
+/// the smallest that holds every sample of [lo, hi] to within [`COLOUR_OVERSHOOT`]
+/// (blending two 255s in f32 can give 255.00002); none for heights (not three
+/// channels) or colour outside [0, 65535]. A 16-bit PNG maps [0, full] to its levels
+/// (the overshoot clamped), and the viewer shows [0, full] as black to full intensity,
+/// so a synthesis of a photo shows the photo's colours.
 pub fn colour_full_scale(channels: usize, lo: f32, hi: f32) -> Option<f32> {
-    if channels != 3 || lo.is_nan() || lo < 0.0 {
+    let tolerance = 1.0 + COLOUR_OVERSHOOT;
+    if channels != 3 || lo.is_nan() || lo < -COLOUR_OVERSHOOT {
         return None;
     }
-    [1.0, 255.0, 65535.0].into_iter().find(|&full| hi <= full)
+    [1.0f32, 255.0, 65535.0]
+        .into_iter()
+        .find(|&full| hi as f64 <= full as f64 * tolerance as f64)
 }
+
+/// Relative overshoot of a colour's full scale that [`colour_full_scale`] tolerates.
+pub const COLOUR_OVERSHOOT: f32 = 1e-4;
 
 /// Writes heights (or colours) to `path` in the format its extension names: 16-bit PNG,
 /// 32-bit float TIFF, float32 `.npy` or X3P, with square pixels `spacing_um` apart and

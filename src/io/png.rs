@@ -122,8 +122,9 @@ pub(super) fn write16(w: &mut impl Write, raster: &Raster, meta: &super::WriteMe
     }
 }
 
-/// [`write16`] scaled from the range [lo, hi] given (which must hold every sample), so
-/// that several files share one scale: level = round((v − lo) / (hi − lo) · 65535).
+/// [`write16`] scaled from the range [lo, hi] given, so that several files share one
+/// scale: level = round((v − lo) / (hi − lo) · 65535), samples outside [lo, hi] clamped
+/// (callers give a range that holds them, but for a colour's float overshoot).
 pub(super) fn write16_in(
     w: &mut impl Write,
     raster: &Raster,
@@ -136,7 +137,6 @@ pub(super) fn write16_in(
         3 => ColorType::Rgb,
         c => return Err(Error::Unsupported(format!("writing a {c}-channel PNG"))),
     };
-    debug_assert!(raster.data.iter().all(|v| (lo..=hi).contains(v)));
     let span = (hi - lo) as f64;
     let meta = HeightMeta {
         height_min: Some(lo as f64),
@@ -154,7 +154,8 @@ pub(super) fn write16_in(
         |y, bytes| {
             for &v in &raster.data[y * row_len..(y + 1) * row_len] {
                 let level = if span > 0.0 {
-                    (((v - lo) as f64 / span) * 65535.0).round() as u16
+                    // Clamped: a colour's full scale tolerates float overshoot.
+                    (((v - lo) as f64 / span).clamp(0.0, 1.0) * 65535.0).round() as u16
                 } else {
                     0
                 };
