@@ -171,7 +171,7 @@ fn parse_direction(name: &str, text: &str) -> Result<glam::Vec3> {
 enum Command {
     /// Analyse an exemplar once and write a tile bank.
     Bake {
-        /// Exemplar height map or image: .png, .tif/.tiff, .npy, or .raw/.f32 (with --raw-shape).
+        /// Exemplar height map or image: .png, .jpg, .tif/.tiff, .npy, .exr, an instrument file (.x3p, .al3d, .plu, .sur, .opd, .di, .dat, .sdf), or .raw/.f32 (with --raw-shape).
         exemplar: PathBuf,
         /// Analysis method.
         #[arg(long, value_enum, default_value_t = Method::Auto)]

@@ -845,8 +845,8 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
     }
     Ok(b.downsample(downsample, filter).rsgf(rsgf).synth(synth))
 }
-/// Analyses an exemplar once into a bank. `exemplar` is a file path (.png, .tif,
-/// .npy; a milling .toml for method="milling") or a numpy array (rows, cols) or
+/// Analyses an exemplar once into a bank. `exemplar` is a file path (.png, .jpg, .tif,
+/// .npy, instrument files; a milling .toml for method="milling") or a numpy array (rows, cols) or
 /// (rows, cols, channels ≤ 4) of floats or integers. `method`: auto (picks one and
 /// says why in `Bank.log`), rpn, adsn, roller, rsgf, quilt, synth or milling.
 /// `spacing_um`: pixel spacing in µm (overrides the file's; required for milling).

@@ -18,6 +18,7 @@ mod al3d;
 mod bytes;
 mod di;
 mod exr;
+mod jpeg;
 mod metropro;
 mod npy;
 mod opd;
@@ -302,6 +303,8 @@ pub enum Format {
     Sdf,
     /// `.exr`: OpenEXR, 32-bit float
     Exr,
+    /// `.jpg`, `.jpeg`: a photo (read only), as 8-bit levels
+    Jpeg,
 }
 
 impl Format {
@@ -327,15 +330,16 @@ impl Format {
             "dat" => Ok(Format::MetroPro),
             "sdf" => Ok(Format::Sdf),
             "exr" => Ok(Format::Exr),
+            "jpg" | "jpeg" => Ok(Format::Jpeg),
             _ => Err(Error::Unsupported(format!(
-                "{}: unknown image extension '{ext}'; expected .png, .tif/.tiff, .npy, .x3p, \
-                 .raw/.f32, or an instrument file (.al3d, .plu, .sur, .opd, .di, .dat, .sdf)",
+                "{}: unknown image extension '{ext}'; expected .png, .jpg, .tif/.tiff, .npy, .x3p, \
+                 .exr, .raw/.f32, or an instrument file (.al3d, .plu, .sur, .opd, .di, .dat, .sdf)",
                 path.display()
             ))),
         }
     }
 
-    /// The format a file's first bytes name, where they name one (PNG, TIFF, NumPy,
+    /// The format a file's first bytes name, where they name one (PNG, JPEG, TIFF, NumPy,
     /// zip = X3P, and the instrument formats' signatures).
     pub fn sniff(bytes: &[u8]) -> Option<Format> {
         let starts = |magic: &[u8]| bytes.starts_with(magic);
@@ -349,6 +353,8 @@ impl Format {
             Some(Format::X3p)
         } else if starts(b"\x76\x2f\x31\x01") {
             Some(Format::Exr)
+        } else if starts(b"\xff\xd8\xff") {
+            Some(Format::Jpeg)
         } else if starts(b"AliconaImaging") {
             Some(Format::Al3d)
         } else if starts(b"DIGITAL SURF") || starts(b"DSCOMPRESSED") {
@@ -431,6 +437,7 @@ pub fn read_image_bytes(
         Format::MetroPro => metropro::read(bytes, what)?,
         Format::Sdf => sdf::read(bytes, what)?,
         Format::Exr => exr::read(bytes, what)?,
+        Format::Jpeg => jpeg::read(bytes, what)?,
         Format::Raw => {
             let shape = options.raw_shape.ok_or_else(|| {
                 Error::param("raw-shape", "none", "WxH or WxHxC for a raw f32 file")
@@ -452,7 +459,7 @@ pub fn read_image_bytes(
     // a height, so it is missing, as the formats' own invalid markers are.
     if !matches!(
         format,
-        Format::Png | Format::Tiff | Format::Npy | Format::Raw | Format::Exr
+        Format::Png | Format::Tiff | Format::Npy | Format::Raw | Format::Exr | Format::Jpeg
     ) {
         for v in &mut image.raster.data {
             if v.is_infinite() {
