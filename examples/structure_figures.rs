@@ -115,11 +115,14 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         .method(method)
         .leveling(leveling)
         .seed(args.seed);
-    let block = if args.block > 0 {
-        args.block
-    } else {
-        RsgfOptions::default().block_px
+    let options = RsgfOptions {
+        stochastic: true,
+        block_px: (args.block > 0).then_some(args.block),
+        border_px: (args.border > 0).then_some(args.border),
+        feather_px: usize::try_from(args.feather).ok(),
+        ..RsgfOptions::default()
     };
+    let block = options.params_for(&image.raster, (1, 0), (0, 1)).block_px;
     // Seams are searched at the default cell and, for RSGF, at its block: a grid of
     // 40 px does not divide the 32-px cell, so that cell alone spreads its seams over
     // every offset. Both rows of a run get the same cells.
@@ -130,17 +133,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     };
     // Each method takes only its own options.
     let builder = if method == Method::Rsgf {
-        builder.rsgf(RsgfOptions {
-            stochastic: true,
-            block_px: block,
-            border_px: if args.border > 0 {
-                args.border
-            } else {
-                RsgfOptions::default().border_px
-            },
-            feather_px: usize::try_from(args.feather).ok(),
-            ..RsgfOptions::default()
-        })
+        builder.rsgf(options)
     } else {
         builder.synth(SynthParams {
             jitter: args.jitter,

@@ -225,12 +225,14 @@ enum Command {
         /// Roller: overlap (cut band) width in pixels; default: a sixth of the tile, ≥ 8.
         #[arg(long, allow_negative_numbers = true)]
         overlap: Option<usize>,
-        /// RSGF: block side in pixels.
-        #[arg(long, default_value_t = 40, allow_negative_numbers = true)]
-        block: usize,
-        /// RSGF: border (patch overlap on each side) in pixels, below half the block.
-        #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
-        border: usize,
+        /// RSGF: block side in pixels; default 40, or with --stochastic (and no
+        /// --border) 3 × the exemplar's correlation length, at least 40.
+        #[arg(long, allow_negative_numbers = true)]
+        block: Option<usize>,
+        /// RSGF: border (patch overlap on each side) in pixels, below half the block;
+        /// default 10, or a quarter of a scaled block.
+        #[arg(long, allow_negative_numbers = true)]
+        border: Option<usize>,
         /// RSGF: gap candidates within ± this many pixels of a lattice multiple.
         #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
         tolerance: usize,

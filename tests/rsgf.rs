@@ -656,9 +656,11 @@ fn reflected_edges_show_the_exemplars_border() {
 /// The ramp of a stochastic bank follows the exemplar's roughness at the pixel scale:
 /// known answers of the measure, the ramp each kind of exemplar gets, and what it is
 /// for: seams at the block's own period, searched at every phase of the 40-px cell,
-/// within the issue's [0.9, 1.15] on a photo (grass, rough) and on an AFM map (di-6,
-/// smooth), where the former single default (a 4-px ramp) read 0.888 and 1.206 in
-/// the same figures (1024², seed 0, `examples/structure_figures.rs`).
+/// within the issue's [0.9, 1.15] on a photo (grass, rough: 0.947 at its 40-px block)
+/// and on an AFM map (di-6, smooth: 1.144 at its 60-px block, scaled by
+/// `stochastic_block`), where the former single default (a 4-px ramp, 40-px blocks)
+/// read 0.888 and 1.206 in the same figures (1024², seed 0,
+/// `examples/structure_figures.rs`).
 #[test]
 fn the_cut_ramp_follows_the_pixel_scale_roughness() {
     use surftile::bake::rsgf::{ROUGH_FEATHER, SMOOTH_FEATHER, pixel_roughness};
@@ -734,9 +736,12 @@ fn the_cut_ramp_follows_the_pixel_scale_roughness() {
         surface
             .fill(&Region::new(0.0, 0.0, n, n), &mut out)
             .unwrap();
-        let seams = seam_any_phase(&Raster::from_vec(n, n, c, out).unwrap(), 40);
+        // Searched at the bank's own block (40 px on grass; di-6's is scaled to its
+        // object scale, `stochastic_block`).
+        let cell = params.block_px;
+        let seams = seam_any_phase(&Raster::from_vec(n, n, c, out).unwrap(), cell);
         eprintln!(
-            "{name}: ramp over {} px, worst seam {:.3} ({} {} of 40)",
+            "{name}: ramp over {} px, worst seam {:.3} ({} {} of {cell})",
             2 * feather,
             seams.worst,
             seams.axis,
@@ -744,7 +749,7 @@ fn the_cut_ramp_follows_the_pixel_scale_roughness() {
         );
         assert!(
             (0.9..=1.15).contains(&seams.worst),
-            "{name}: seam score {:.3} at {} {} of the 40-px block",
+            "{name}: seam score {:.3} at {} {} of the {cell}-px block",
             seams.worst,
             seams.axis,
             seams.offset
@@ -904,4 +909,91 @@ fn bad_rsgf_input_is_refused() {
         .unwrap()
         .to_string();
     assert!(both.contains("stochastic"), "{both}");
+}
+
+/// A stochastic bank's blocks follow the exemplar's object scale (`stochastic_block`):
+/// white noise reads 1 px; every photo of `tests/data` keeps the paper's 40-px block
+/// and 10-px border (so the structure figures of docs/structure.md stand); the
+/// stone-wall photo enlarged 4× (stones of 100–200 px, which 40-px blocks broke into
+/// shards) scales its object scale about 4× and gets blocks of 120–200 px, a quarter
+/// of that as border, with room for the patch; a block that is given wins, and a
+/// lattice bank keeps 40 px.
+#[test]
+fn stochastic_blocks_follow_the_object_scale() {
+    use surftile::bake::rsgf::{DEFAULT_BLOCK, DEFAULT_BORDER, object_scale, stochastic_block};
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let noise: Vec<f32> = (0..128 * 128)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32
+        })
+        .collect();
+    let noise = Raster::from_vec(128, 128, 1, noise).unwrap();
+    assert_eq!(object_scale(&noise), 1.0);
+    for name in [
+        "gimp-crack",
+        "gimp-dried-mud",
+        "gimp-ice",
+        "gimp-rocks",
+        "gimp-slate",
+        "gimp-stone33",
+        "skimage-brick-256",
+        "skimage-grass-256",
+        "skimage-gravel-256",
+    ] {
+        let rel = format!("tests/data/{name}.png");
+        let ex = read_image(&repo(&rel), &ReadOptions::default())
+            .unwrap()
+            .raster;
+        let scale = stochastic_block(&ex);
+        assert_eq!(
+            (scale.block_px, scale.border_px),
+            (DEFAULT_BLOCK, DEFAULT_BORDER),
+            "{name}: object scale {}",
+            scale.scale_px
+        );
+    }
+    let stone = read_image(
+        &repo("tests/data/gimp-stone33.png"),
+        &ReadOptions::default(),
+    )
+    .unwrap()
+    .raster;
+    let (w, h, c) = (stone.width * 4, stone.height * 4, stone.channels);
+    let big: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let at = ((i / w / 4) * stone.width + i % w / 4) * c;
+            stone.data[at..at + c].to_vec()
+        })
+        .collect();
+    let big = Raster::from_vec(w, h, c, big).unwrap();
+    let (small, large) = (object_scale(&stone), object_scale(&big));
+    eprintln!("stone33: object scale {small} px; enlarged 4×: {large} px");
+    assert!((3.0..=5.0).contains(&(large / small)), "{small} → {large}");
+    let scale = stochastic_block(&big);
+    assert!(
+        (120..=200).contains(&scale.block_px) && scale.border_px == scale.block_px / 4,
+        "{scale:?}"
+    );
+    let stochastic = RsgfOptions {
+        stochastic: true,
+        ..RsgfOptions::default()
+    };
+    let params = stochastic.params_for(&big, (1, 0), (0, 1));
+    assert_eq!(
+        (params.block_px, params.border_px),
+        (scale.block_px, scale.border_px)
+    );
+    params.validate().unwrap();
+    params.check_exemplar(w, h).unwrap();
+    let given = RsgfOptions {
+        block_px: Some(40),
+        ..stochastic.clone()
+    };
+    let given = given.params_for(&big, (1, 0), (0, 1));
+    assert_eq!((given.block_px, given.border_px), (40, 10));
+    let lattice = RsgfOptions::default().params_for(&big, (1, 0), (0, 1));
+    assert_eq!(lattice.block_px, DEFAULT_BLOCK);
 }

@@ -767,11 +767,11 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
             }
             "overlap" => b.overlap(count_param(k, &v)?),
             "block" => {
-                rsgf.block_px = count_param(k, &v)?;
+                rsgf.block_px = Some(count_param(k, &v)?);
                 b
             }
             "border" => {
-                rsgf.border_px = count_param(k, &v)?;
+                rsgf.border_px = Some(count_param(k, &v)?);
                 b
             }
             "tolerance" => {
