@@ -205,8 +205,6 @@ fn render_writes_exr_and_normal_maps() {
     }
 }
 
-/// An EXR whose header claims a 20000² layer over a few kilobytes is refused in one
-/// line before any pixel is decoded.
 /// A single-resolution tiled file whose tile chunk claims resolution level (0, 1): a
 /// fuzz finding (`fuzz/seeds/exr/tile-of-another-level.exr`) on which the exr crate's
 /// debug assertion fired. It is refused before decoding, with a one-line error.
@@ -227,6 +225,32 @@ fn exr_with_a_tile_of_another_level_is_refused() {
     );
 }
 
+/// A 24 × 16 tiled file whose header claims tiles of 825194048 × 131585 pixels: a fuzz
+/// finding (`fuzz/seeds/exr/tile-larger-than-the-image.exr`) on which the exr crate
+/// took 1.6 GB sizing its buffers by the claimed tile before any pixel was read (the
+/// fuzz run's 2 GiB limit stopped it). It is refused from the header, in one line.
+#[test]
+fn exr_with_tiles_larger_than_the_image_is_refused() {
+    let bytes = std::fs::read(common::repo(
+        "fuzz/seeds/exr/tile-larger-than-the-image.exr",
+    ))
+    .unwrap();
+    let e = surftile::io::read_image_bytes(
+        &bytes,
+        surftile::io::Format::Exr,
+        "tiles.exr",
+        &ReadOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("tiles.exr") && e.contains("825194048×131585") && !e.contains('\n'),
+        "{e}"
+    );
+}
+
+/// An EXR whose header claims a 20000² layer over a few kilobytes is refused in one
+/// line before any pixel is decoded.
 #[test]
 fn exr_claiming_a_huge_layer_is_refused() {
     let dir = tempfile::tempdir().unwrap();

@@ -17,6 +17,9 @@ use crate::raster::Raster;
 /// The text attribute holding surftile's metadata.
 const META: &str = "surftile";
 
+/// Tile area accepted whatever the image's size (256², a common tile).
+const TILE_PX_ALWAYS: usize = 1 << 16;
+
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     let bad = |m: String| Error::decode(what, m);
     // The header first: sizes are checked before any pixel is decoded.
@@ -46,6 +49,20 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     // build would place the line by the wrong level's geometry). Heights are written
     // single-resolution.
     if let exr::meta::BlockDescription::Tiles(tiles) = &header.blocks {
+        // A tile larger than the image is never needed, and the exr crate sizes its
+        // buffers by the tile the header claims (a fuzz finding: a 24 × 16 image with
+        // tiles of 825194048 × 131585 pixels took 1.6 GB before any pixel was read).
+        let (tw, th) = (tiles.tile_size.width(), tiles.tile_size.height());
+        let tile_px = (tw as u128) * (th as u128);
+        if tile_px > (pixels.max(TILE_PX_ALWAYS) as u128)
+            || tile_px * channels as u128 > 4 * super::MAX_IMAGE_PIXELS as u128
+        {
+            return Err(bad(format!(
+                "OpenEXR tiles of {tw}×{th} pixels for a {}×{} image; expected tiles no larger than the image (or {TILE_PX_ALWAYS} pixels)",
+                size.width(),
+                size.height()
+            )));
+        }
         if tiles.level_mode != exr::meta::attribute::LevelMode::Singular {
             return Err(bad(format!(
                 "a multi-resolution ({:?}) OpenEXR image; surftile reads single-resolution images",
