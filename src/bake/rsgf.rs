@@ -19,8 +19,8 @@ use crate::stream::{Region, Surface};
 #[derive(Clone, Debug, PartialEq)]
 pub struct RsgfOptions {
     /// Block side B in pixels. None: [`DEFAULT_BLOCK`] on a lattice; in stochastic
-    /// mode, scaled to the exemplar's correlation length ([`stochastic_block`]), with
-    /// the border, unless one of the two is given.
+    /// mode, scaled to the exemplar's object scale ([`stochastic_block`]), with the
+    /// border, unless one of the two is given.
     pub block_px: Option<usize>,
     /// Border o in pixels. None: [`DEFAULT_BORDER`], or scaled with the block.
     pub border_px: Option<usize>,
