@@ -205,48 +205,33 @@ fn render_writes_exr_and_normal_maps() {
     }
 }
 
-/// A single-resolution tiled file whose tile chunk claims resolution level (0, 1): a
-/// fuzz finding (`fuzz/seeds/exr/tile-of-another-level.exr`) on which the exr crate's
-/// debug assertion fired. It is refused before decoding, with a one-line error.
+/// EXR fuzz findings, kept in `fuzz/seeds/exr/`, each refused before decoding with a
+/// one-line error naming the file:
+/// - a single-resolution tiled file whose tile chunk claims resolution level (0, 1), on
+///   which the exr crate's debug assertion fired;
+/// - a 24 × 16 tiled file whose header claims tiles of 825194048 × 131585 pixels, on
+///   which the exr crate took 1.6 GB sizing its buffers by the claimed tile before any
+///   pixel was read (the fuzz run's 2 GiB limit stopped it).
 #[test]
-fn exr_with_a_tile_of_another_level_is_refused() {
-    let bytes = std::fs::read(common::repo("fuzz/seeds/exr/tile-of-another-level.exr")).unwrap();
-    let e = surftile::io::read_image_bytes(
-        &bytes,
-        surftile::io::Format::Exr,
-        "lying.exr",
-        &ReadOptions::default(),
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(
-        e.contains("lying.exr") && e.contains("resolution level (0, 1)") && !e.contains('\n'),
-        "{e}"
-    );
-}
-
-/// A 24 × 16 tiled file whose header claims tiles of 825194048 × 131585 pixels: a fuzz
-/// finding (`fuzz/seeds/exr/tile-larger-than-the-image.exr`) on which the exr crate
-/// took 1.6 GB sizing its buffers by the claimed tile before any pixel was read (the
-/// fuzz run's 2 GiB limit stopped it). It is refused from the header, in one line.
-#[test]
-fn exr_with_tiles_larger_than_the_image_is_refused() {
-    let bytes = std::fs::read(common::repo(
-        "fuzz/seeds/exr/tile-larger-than-the-image.exr",
-    ))
-    .unwrap();
-    let e = surftile::io::read_image_bytes(
-        &bytes,
-        surftile::io::Format::Exr,
-        "tiles.exr",
-        &ReadOptions::default(),
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(
-        e.contains("tiles.exr") && e.contains("825194048×131585") && !e.contains('\n'),
-        "{e}"
-    );
+fn exr_fuzz_findings_are_refused() {
+    for (seed, needle) in [
+        ("tile-of-another-level.exr", "resolution level (0, 1)"),
+        ("tile-larger-than-the-image.exr", "825194048×131585"),
+    ] {
+        let bytes = std::fs::read(common::repo(&format!("fuzz/seeds/exr/{seed}"))).unwrap();
+        let e = surftile::io::read_image_bytes(
+            &bytes,
+            surftile::io::Format::Exr,
+            "lying.exr",
+            &ReadOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("lying.exr") && e.contains(needle) && !e.contains('\n'),
+            "{seed}: {e}"
+        );
+    }
 }
 
 /// An EXR whose header claims a 20000² layer over a few kilobytes is refused in one

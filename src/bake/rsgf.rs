@@ -261,7 +261,12 @@ pub fn pixel_roughness(ex: &Raster) -> f64 {
 /// 4-px ramp, 0.95 / 0.94 with 2 px; di-6 (an AFM map) 1.21 / 1.19 with 4 px, 1.13 /
 /// 1.13 with 6 px.
 pub fn stochastic_feather(ex: &Raster) -> usize {
-    if pixel_roughness(ex) >= ROUGH_AT {
+    stochastic_feather_of(pixel_roughness(ex))
+}
+
+/// [`stochastic_feather`] for a measured [`pixel_roughness`] `g`.
+fn stochastic_feather_of(g: f64) -> usize {
+    if g >= ROUGH_AT {
         ROUGH_FEATHER
     } else {
         SMOOTH_FEATHER
@@ -337,6 +342,31 @@ pub(crate) fn bake(
     progress: &mut dyn FnMut(&str),
 ) -> Result<Bank> {
     let (w, h, c) = (ex.width, ex.height, ex.channels);
+    // The defaults that depend on the exemplar (a stochastic bank's block and ramp) are
+    // measured once, said, and fixed in the options every later step uses.
+    let mut resolved = options.clone();
+    if options.stochastic && options.block_px.is_none() && options.border_px.is_none() {
+        let scale = stochastic_block(ex);
+        progress(&format!(
+            "blocks of {} px, border {} px: {BLOCK_PER_SCALE} × the object scale {:.0} px (autocorrelation below {SCALE_ACF}), kept within [{DEFAULT_BLOCK} px, a third of the shorter side] (pass --block to choose)",
+            scale.block_px, scale.border_px, scale.scale_px
+        ));
+        resolved.block_px = Some(scale.block_px);
+        resolved.border_px = Some(scale.border_px);
+    }
+    if options.feather_px.is_none() && options.stochastic && options.join == Join::Cut {
+        let g = pixel_roughness(ex);
+        // Below the border, as `params_with` keeps it.
+        let border = resolved.border_px.unwrap_or(DEFAULT_BORDER);
+        let feather = stochastic_feather_of(g).min(border.saturating_sub(1));
+        progress(&format!(
+            "cut ramp of {} px: roughness at the pixel scale {g:.3} ({} {ROUGH_AT}; pass --feather to choose)",
+            2 * feather,
+            if g >= ROUGH_AT { "≥" } else { "<" }
+        ));
+        resolved.feather_px = Some(feather);
+    }
+    let options = &resolved;
     // Parameters that do not depend on the lattice fail before any analysis.
     let probe = options.params_for(ex, (1, 0), (0, 1));
     probe.validate()?;
@@ -367,21 +397,6 @@ pub(crate) fn bake(
         }
     };
     let params = options.params_for(ex, v1, v2);
-    if options.stochastic && options.block_px.is_none() && options.border_px.is_none() {
-        let scale = stochastic_block(ex);
-        progress(&format!(
-            "blocks of {} px, border {} px: {BLOCK_PER_SCALE} × the object scale {:.0} px (autocorrelation below {SCALE_ACF}), kept within [{DEFAULT_BLOCK} px, a third of the shorter side] (pass --block to choose)",
-            scale.block_px, scale.border_px, scale.scale_px
-        ));
-    }
-    if options.feather_px.is_none() && options.stochastic && options.join == Join::Cut {
-        let g = pixel_roughness(ex);
-        progress(&format!(
-            "cut ramp of {} px: roughness at the pixel scale {g:.3} ({} {ROUGH_AT}; pass --feather to choose)",
-            2 * params.feather_px,
-            if g >= ROUGH_AT { "≥" } else { "<" }
-        ));
-    }
     // Building the model checks the lattice against the exemplar, as loading will.
     let model = RsgfModel::new(ex, &params)?;
     // The bank keeps the exemplar's own chain (the model's may be extended by its

@@ -283,6 +283,9 @@ pub struct OriginSample {
     pub sd: f64,
     /// Their rms slope (height units per pixel, central differences).
     pub rms_slope: f64,
+    /// The least and greatest finite value of the sample over every channel (a colour
+    /// source's levels: the viewer's colour scale).
+    pub range: (f32, f32),
 }
 
 impl OriginSample {
@@ -295,6 +298,10 @@ impl OriginSample {
         let c = s.channels();
         let mut v = vec![0.0f32; n * n * c];
         s.fill(&Region::new(0.0, 0.0, n, n), &mut v)?;
+        let range = v
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold((f32::MAX, f32::MIN), |(l, u), &x| (l.min(x), u.max(x)));
         let heights: Vec<f32> = v.iter().step_by(c).copied().collect();
         let h = |x: usize, y: usize| heights[y * n + x] as f64;
         let (mut sum, mut sq, mut slope2, mut count) = (0.0f64, 0.0f64, 0.0f64, 0usize);
@@ -317,6 +324,7 @@ impl OriginSample {
             mean,
             sd: (sq / count - mean * mean).max(0.0).sqrt(),
             rms_slope: (slope2 / count).sqrt(),
+            range,
             heights,
         })
     }

@@ -261,9 +261,11 @@ impl Source {
             Some(g) => Fill::Gpu(Box::new(g)),
             None => Fill::Pages(PageStreamer::new(cpu.clone(), PAGE, workers, cache_bytes)?),
         };
-        let (range, exaggeration) = display_scales(cpu.as_ref())?;
+        let origin = crate::stream::OriginSample::of(cpu.as_ref())?;
+        let (range, exaggeration) = scales_of(&origin);
         Ok(Source {
-            colour: colour_scale(cpu.as_ref())?,
+            // A colour source's full scale, from the levels of the same sample.
+            colour: crate::io::colour_full_scale(cpu.channels(), origin.range.0, origin.range.1),
             cpu,
             fill,
             range,
@@ -449,35 +451,24 @@ pub fn pack_colour(rgb: &[f32], full: f32) -> f32 {
     f32::from_bits(level(rgb[0]) | level(rgb[1]) << 8 | level(rgb[2]) << 16)
 }
 
-/// A colour source's full scale ([`crate::io::colour_full_scale`]) over a 64² sample at
-/// the origin; none for heights.
-fn colour_scale(s: &dyn Surface) -> Result<Option<f32>> {
-    if s.channels() != 3 {
-        return Ok(None);
-    }
-    let n = 64;
-    let mut v = vec![0.0f32; n * n * 3];
-    s.fill(&Region::new(0.0, 0.0, n, n), &mut v)?;
-    let (lo, hi) = v
-        .iter()
-        .fold((f32::MAX, f32::MIN), |(l, u), &x| (l.min(x), u.max(x)));
-    Ok(crate::io::colour_full_scale(3, lo, hi))
-}
-
 /// The grey ramp (mean ± 3σ) and the shading's slope exaggeration (rms slope 0.5 per
 /// surface pixel, as `render --shade` picks it) of a surface, from a 256² sample at the
 /// origin.
 pub fn display_scales(s: &dyn Surface) -> Result<((f32, f32), f32)> {
-    let o = crate::stream::OriginSample::of(s)?;
+    Ok(scales_of(&crate::stream::OriginSample::of(s)?))
+}
+
+/// [`display_scales`] from a sample already taken.
+fn scales_of(o: &crate::stream::OriginSample) -> ((f32, f32), f32) {
     let half = if o.sd > 0.0 {
         3.0 * o.sd
     } else {
         o.mean.abs().max(1.0)
     };
-    Ok((
+    (
         ((o.mean - half) as f32, (o.mean + half) as f32),
         o.half_slope_scale() as f32,
-    ))
+    )
 }
 
 /// `shaders/shade.wgsl` `ShadeParams`.
