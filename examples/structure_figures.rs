@@ -101,10 +101,12 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         .unwrap_or_default();
     let image = read_image(path, &ReadOptions::default())?;
     let height_map = path.extension().is_some_and(|e| e == "npy");
+    // Bake's default form removal: the plane off a height map, the flat field of a
+    // photo (its light falling across the frame; `Leveling::Auto`).
     let leveling = if height_map {
         Leveling::Plane
     } else {
-        Leveling::None
+        Leveling::Auto
     };
     let method = match args.method.as_str() {
         "synth" => Method::Synth,

@@ -397,13 +397,27 @@ impl Baker {
             exemplar = std::borrow::Cow::Owned(square);
             file_spacing = Some(d);
         }
-        let raster = crate::prep::Prep {
+        // A photo under the default form removal is flat-fielded instead: its mean (its
+        // colour) stays, the light falling across the frame goes.
+        let flat_field = self.leveling == crate::prep::Leveling::Auto
+            && crate::bake::auto::is_photo(&image.raster);
+        let mut raster = crate::prep::Prep {
             fill_missing: self.fill_missing,
-            leveling: self.leveling,
+            leveling: if flat_field {
+                crate::prep::Leveling::None
+            } else {
+                self.leveling
+            },
             downsample: self.downsample,
             filter: self.filter,
         }
         .apply(&exemplar, source)?;
+        if flat_field {
+            crate::prep::level::flatten_illumination(
+                &mut raster,
+                crate::prep::level::ILLUMINATION_DEGREE,
+            );
+        }
         let spacing = self
             .spacing_um
             .or(file_spacing)
@@ -439,8 +453,18 @@ impl Baker {
             spacing_um,
             self.seed,
             format!(
-                "level={:?} downsample={} filter={:?} fill_missing={}",
-                self.leveling, self.downsample, self.filter, self.fill_missing
+                "level={:?}{} downsample={} filter={:?} fill_missing={}",
+                self.leveling,
+                if self.leveling == crate::prep::Leveling::Auto
+                    && crate::bake::auto::is_photo(&image.raster)
+                {
+                    " (photo: flat field of degree 2)"
+                } else {
+                    ""
+                },
+                self.downsample,
+                self.filter,
+                self.fill_missing
             ),
         );
         Ok((ex, base))
