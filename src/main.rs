@@ -1025,6 +1025,7 @@ fn convert_command(input: &Path, output: &Path, o: &ConvertOptions) -> Result<()
         spacing_um: image.spacing_um,
         spacing_y_um: image.spacing_y_um.filter(|_| image.non_square()),
         unit,
+        levels: None,
     };
     write_heights_with(output, &raster, &meta)?;
     let unrecorded = matches!(
@@ -1497,7 +1498,10 @@ fn run(command: Command) -> Result<()> {
                 &region,
                 &out,
                 shading.as_ref(),
-                spec.spacing_um(),
+                surftile::render::OutputMeta {
+                    spacing_um: spec.spacing_um(),
+                    levels: spec.bank().and_then(|b| b.header.exemplar.levels),
+                },
                 mask.as_deref().map(|m| (m, &defect_ids as MaskIds)),
                 &mut progress_reporter("render"),
             )?;

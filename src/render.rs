@@ -162,19 +162,40 @@ impl Surface for Slopes<'_> {
     }
 }
 
+/// What a height output records beside its samples: the source's pixel spacing in µm,
+/// and a photo's full scale ([`crate::io::WriteMeta::levels`]). A spacing alone
+/// (`Option<f64>`) converts into it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OutputMeta {
+    /// Pixel spacing of the source in µm (the output's is this times the step).
+    pub spacing_um: Option<f64>,
+    /// A photo's full scale, from its bank ([`crate::bank::ExemplarInfo::levels`]).
+    pub levels: Option<f32>,
+}
+
+impl From<Option<f64>> for OutputMeta {
+    fn from(spacing_um: Option<f64>) -> OutputMeta {
+        OutputMeta {
+            spacing_um,
+            levels: None,
+        }
+    }
+}
+
 /// Renders `region` to `out`: heights as 16-bit PNG, f32 TIFF or f32 `.npy` by
 /// extension; with `shading`, an 8-bit Phong-shaded PNG of channel 0 instead, its
 /// normals from the surface's analytic gradient where it has one, else from central
 /// differences of the heights (an explicit exaggeration is per surface pixel, so it is
-/// divided by the step).
+/// divided by the step). `meta`: the spacing (or [`OutputMeta`] with a photo's scale).
 pub fn render_to_file(
     surface: &dyn Surface,
     region: &Region,
     out: &Path,
     shading: Option<&ShadeOptions>,
-    spacing_um: Option<f64>,
+    meta: impl Into<OutputMeta>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
+    let meta = meta.into();
     preflight(region, out, shading, surface.channels())?;
     if let Some(options) = shading {
         let options = ShadeOptions {
@@ -198,7 +219,14 @@ pub fn render_to_file(
         return write_png8(out, region.width, region.height, 1, &pixels);
     }
     let raster = render_region(surface, region, progress)?;
-    write_heights(out, &raster, spacing_um.map(|s| s * region.step))
+    crate::io::write_finite(
+        out,
+        &raster,
+        &crate::io::WriteMeta {
+            levels: meta.levels,
+            ..crate::io::WriteMeta::um(meta.spacing_um.map(|s| s * region.step))
+        },
+    )
 }
 
 /// What [`render_to_file`] checks before anything is filled or allocated: the output's
@@ -339,12 +367,13 @@ pub fn render_with_mask(
     region: &Region,
     out: &Path,
     shading: Option<&ShadeOptions>,
-    spacing_um: Option<f64>,
+    meta: impl Into<OutputMeta>,
     mask: Option<(&Path, MaskIds)>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
+    let meta = meta.into();
     let Some((mask, ids)) = mask else {
-        return render_to_file(surface, region, out, shading, spacing_um, progress);
+        return render_to_file(surface, region, out, shading, meta, progress);
     };
     LayerOutputs {
         mask: Some(mask),
@@ -356,14 +385,7 @@ pub fn render_with_mask(
     crate::io::check_png_size(region.width, region.height)?;
     preflight(region, out, shading, surface.channels())?;
     let mut staged = crate::io::Staged::new();
-    render_to_file(
-        surface,
-        region,
-        &staged.path(out),
-        shading,
-        spacing_um,
-        progress,
-    )?;
+    render_to_file(surface, region, &staged.path(out), shading, meta, progress)?;
     let mut v = vec![0u8; region.width * region.height];
     ids(region, &mut v)?;
     write_png8(&staged.path(mask), region.width, region.height, 1, &v)?;

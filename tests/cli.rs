@@ -1482,3 +1482,61 @@ fn stats_of_one_map_names_its_operators() {
         r.stderr
     );
 }
+
+/// A grey photo's synthesis keeps the photo's levels in a 16-bit PNG, as colour does
+/// (level = v / 255 · 65535, within one level of the float render), where a height map's
+/// render is stretched to black and white: a dark 8-bit slate photo (levels 34–119) once
+/// came out at full contrast. The bank records the scale.
+#[test]
+fn grey_photo_renders_keep_their_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let photo = common::repo("tests/data/gimp-slate.png")
+        .display()
+        .to_string();
+    let r = surftile(dir.path(), &["bake", &photo, "--out", "slate.bank"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let bank = Bank::read(&dir.path().join("slate.bank")).unwrap();
+    assert_eq!(bank.header.exemplar.levels, Some(255.0));
+    let levels_of = |name: &str| {
+        let decoder = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(dir.path().join(name)).unwrap(),
+        ));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!(info.color_type, png::ColorType::Grayscale);
+        buf[..info.buffer_size()]
+            .chunks_exact(2)
+            .map(|b| u16::from_be_bytes([b[0], b[1]]))
+            .collect::<Vec<u16>>()
+    };
+    for out in ["slate.png", "slate.npy"] {
+        let r = render(dir.path(), "slate.bank", ("96", "64"), out, &[]);
+        assert_eq!(r.code, 0, "{}", r.stderr);
+    }
+    let values = surftile::io::read_image(
+        &dir.path().join("slate.npy"),
+        &surftile::io::ReadOptions::default(),
+    )
+    .unwrap()
+    .raster;
+    let levels = levels_of("slate.png");
+    let (lo, hi) = levels
+        .iter()
+        .fold((u16::MAX, 0u16), |(l, h), &v| (l.min(v), h.max(v)));
+    assert!(lo > 0 && hi < 65535, "stretched: levels {lo}–{hi}");
+    for (v, &l) in values.data.iter().zip(&levels) {
+        let want = (*v as f64 / 255.0 * 65535.0).round();
+        assert!((l as f64 - want).abs() <= 1.0, "{v} written as level {l}");
+    }
+    // A height map's render is stretched over its range.
+    bake_good(dir.path());
+    let r = render(dir.path(), "good.bank", ("96", "64"), "h.png", &[]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let h = levels_of("h.png");
+    assert_eq!(
+        h.iter()
+            .fold((u16::MAX, 0u16), |(l, m), &v| (l.min(v), m.max(v))),
+        (0, 65535)
+    );
+}

@@ -40,6 +40,7 @@ fn exr_round_trips_bit_for_bit() {
             spacing_um: Some(0.25),
             spacing_y_um: Some(0.5),
             unit: Unit::Um,
+            levels: None,
         };
         write_heights_with(&path, &raster, &meta).unwrap();
         let back = read_image(&path, &ReadOptions::default()).unwrap();

@@ -349,6 +349,7 @@ fn x3p_keeps_non_square_spacing_units_and_missing_points() {
         spacing_um: Some(0.1277),
         spacing_y_um: Some(0.3146),
         unit: Unit::Nm,
+        levels: None,
     };
     write_heights_with(&path, &raster, &meta).unwrap();
     let back = read_image(&path, &ReadOptions::default()).unwrap();
@@ -464,6 +465,7 @@ fn tiff_and_png_record_the_height_unit() {
             spacing_um: Some(0.5),
             spacing_y_um: Some(0.25),
             unit,
+            levels: None,
         };
         write_heights_with(&path, &raster, &meta).unwrap();
         let back = read_image(&path, &ReadOptions::default()).unwrap();

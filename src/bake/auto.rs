@@ -85,17 +85,7 @@ pub struct AutoChoice {
     pub reason: String,
 }
 
-/// Whether an exemplar as read (before preprocessing) is a photo rather than a height
-/// map: colour (three or more channels), or grey levels as an 8-bit file holds them
-/// (every sample an integer in 0–255). Height maps come as floats (instrument files,
-/// X3P, npy, TIFF) or as 16-bit PNG; an 8-bit height map counts as a photo.
-pub fn is_photo(raw: &Raster) -> bool {
-    raw.channels >= 3
-        || raw
-            .data
-            .iter()
-            .all(|&v| (0.0..=255.0).contains(&v) && v.fract() == 0.0)
-}
+pub use crate::io::is_photo;
 
 /// Picks the method for a preprocessed exemplar `ex` (finite values; see the module
 /// notes). `seed` drives the RPN realisation. `photo` ([`is_photo`] of the exemplar as

@@ -449,7 +449,7 @@ impl Baker {
     ) -> Result<(Raster, HeaderBase)> {
         let (ex, spacing_um) = self.preprocess(image, source)?;
         let base = (
-            exemplar_info(&ex, source),
+            exemplar_info(&ex, &image.raster, source),
             spacing_um,
             self.seed,
             format!(
@@ -649,7 +649,7 @@ impl Baker {
             });
         }
 
-        let exemplar = exemplar_info(&ex, source);
+        let exemplar = exemplar_info(&ex, &image.raster, source);
         let sqrt3 = 3f64.sqrt();
         let header = BankHeader {
             method: self.method,
@@ -753,7 +753,7 @@ impl Baker {
             spacing_um,
             height_unit: height_unit(c, spacing_um),
             seed: self.seed,
-            exemplar: exemplar_info(&ex, source),
+            exemplar: exemplar_info(&ex, &image.raster, source),
             bake: format!(
                 "method=quilt colours={} patch={side} edge={} band={} seed={} level={:?} downsample={} filter={:?} fill_missing={}",
                 layout.colours,
@@ -935,7 +935,7 @@ impl Baker {
             spacing_um,
             height_unit: height_unit(c, spacing_um),
             seed: self.seed,
-            exemplar: exemplar_info(&ex, source),
+            exemplar: exemplar_info(&ex, &image.raster, source),
             bake: format!(
                 "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} phase={:?} level={:?} downsample={} filter={:?} fill_missing={}",
                 u.0,
@@ -960,8 +960,9 @@ impl Baker {
     }
 }
 
-/// Statistics of the preprocessed exemplar, kept in the bank.
-pub(crate) fn exemplar_info(ex: &Raster, source: &str) -> ExemplarInfo {
+/// Statistics of the preprocessed exemplar `ex`, kept in the bank, and the full scale of
+/// `raw`, as read, where it was a photo ([`crate::io::photo_full_scale`]).
+pub(crate) fn exemplar_info(ex: &Raster, raw: &Raster, source: &str) -> ExemplarInfo {
     let c = ex.channels;
     let sorted: Vec<Vec<f64>> = (0..c)
         .map(|ch| {
@@ -982,6 +983,7 @@ pub(crate) fn exemplar_info(ex: &Raster, source: &str) -> ExemplarInfo {
             .map(|s| quantile_levels.iter().map(|&p| quantile(s, p)).collect())
             .collect(),
         quantile_levels,
+        levels: crate::io::photo_full_scale(raw),
     }
 }
 

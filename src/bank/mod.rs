@@ -129,6 +129,11 @@ pub struct ExemplarInfo {
     pub quantile_levels: Vec<f64>,
     /// Quantiles per channel (height units), one row per channel.
     pub quantiles: Vec<Vec<f64>>,
+    /// A photo's full scale (255 for 8-bit levels): renders keep its values on [0, full]
+    /// rather than stretching them ([`crate::io::photo_full_scale`]). None for heights,
+    /// and in banks written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub levels: Option<f32>,
 }
 
 /// One mip level of a bank.

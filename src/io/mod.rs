@@ -174,6 +174,10 @@ pub struct WriteMeta {
     /// The unit the raster's heights are in (X3P converts them to metres; PNG and TIFF
     /// record it).
     pub unit: Unit,
+    /// A photo's full scale ([`photo_full_scale`]): a one-channel 16-bit PNG maps
+    /// [0, full] to its levels, as colour does, where every sample lies in it (within
+    /// [`COLOUR_OVERSHOOT`]); None: heights, min–max scaled.
+    pub levels: Option<f32>,
 }
 
 impl WriteMeta {
@@ -183,6 +187,7 @@ impl WriteMeta {
             spacing_um,
             spacing_y_um: None,
             unit: Unit::Um,
+            levels: None,
         }
     }
 }
@@ -497,6 +502,40 @@ pub fn colour_full_scale(channels: usize, lo: f32, hi: f32) -> Option<f32> {
         .find(|&full| hi as f64 <= full as f64 * tolerance as f64)
 }
 
+/// Whether an exemplar as read (before preprocessing) is a photo rather than a height
+/// map: colour (three or more channels), or grey levels as an 8-bit file holds them
+/// (every sample an integer in 0–255). Height maps come as floats (instrument files,
+/// X3P, npy, TIFF) or as 16-bit PNG; an 8-bit height map counts as a photo.
+pub fn is_photo(raw: &Raster) -> bool {
+    raw.channels >= 3
+        || raw
+            .data
+            .iter()
+            .all(|&v| (0.0..=255.0).contains(&v) && v.fract() == 0.0)
+}
+
+/// The full scale of a photo's levels as read (`raw`, before any preprocessing): 255
+/// for grey in 8-bit levels, [`colour_full_scale`] of its range for colour; None for
+/// anything else (heights). Banks record it ([`crate::bank::ExemplarInfo::levels`]), so
+/// that a render of a grey photo's synthesis keeps the photo's levels as colour does
+/// ([`WriteMeta::levels`]) instead of stretching its range to black and white.
+pub fn photo_full_scale(raw: &Raster) -> Option<f32> {
+    if !is_photo(raw) {
+        return None;
+    }
+    match raw.channels {
+        1 => Some(255.0),
+        3 => {
+            let (lo, hi) = raw
+                .data
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+            colour_full_scale(3, lo, hi)
+        }
+        _ => None,
+    }
+}
+
 /// Relative overshoot of a colour's full scale that [`colour_full_scale`] tolerates.
 pub const COLOUR_OVERSHOOT: f32 = 1e-4;
 
@@ -504,6 +543,12 @@ pub const COLOUR_OVERSHOOT: f32 = 1e-4;
 /// 32-bit float TIFF, float32 `.npy` or X3P, with square pixels `spacing_um` apart and
 /// heights in µm. Non-finite samples are refused.
 pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> Result<()> {
+    write_finite(path, raster, &WriteMeta::um(spacing_um))
+}
+
+/// [`write_heights_with`] for samples that must all be finite (a synthesis): a NaN or
+/// infinite sample is refused before anything is written.
+pub fn write_finite(path: &Path, raster: &Raster, meta: &WriteMeta) -> Result<()> {
     if raster.data.iter().any(|v| !v.is_finite()) {
         return Err(Error::param(
             "output samples",
@@ -511,7 +556,7 @@ pub fn write_heights(path: &Path, raster: &Raster, spacing_um: Option<f64>) -> R
             "finite heights (NaN or infinite values cannot be written)",
         ));
     }
-    write_heights_with(path, raster, &WriteMeta::um(spacing_um))
+    write_heights_with(path, raster, meta)
 }
 
 /// Writes heights to `path` in the format its extension names, with `meta`'s spacings

@@ -866,6 +866,7 @@ impl MillingSurface {
                 std: vec![0.0],
                 quantile_levels: Vec::new(),
                 quantiles: vec![Vec::new()],
+                levels: None,
             },
             bake: format!("method=milling config={source}"),
             record: Record::Milling {
