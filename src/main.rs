@@ -191,7 +191,7 @@ enum Command {
         /// Seed of the random phases and crops.
         #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
         seed: u64,
-        /// Plane levelling: auto (height maps only), plane or none.
+        /// Form removal: auto (the plane off a height map, the degree-2 flat field of a photo), plane or none.
         #[arg(long, default_value_t = Leveling::Auto)]
         level: Leveling,
         /// Integer down-sampling factor to a coarser spacing.
@@ -1479,7 +1479,10 @@ fn run(command: Command) -> Result<()> {
                     &region,
                     &out,
                     shading.as_ref(),
-                    spec.spacing_um(),
+                    surftile::render::OutputMeta {
+                        spacing_um: spec.spacing_um(),
+                        levels: spec.bank().and_then(|b| b.header.exemplar.levels),
+                    },
                     outputs,
                     defects.as_ref().map(|_| &defect_ids as MaskIds),
                     &mut progress_reporter("render"),

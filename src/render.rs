@@ -400,13 +400,11 @@ pub fn render_imperfect<S: Surface>(
     region: &Region,
     out: &Path,
     shading: Option<&ShadeOptions>,
-    spacing_um: Option<f64>,
+    meta: impl Into<OutputMeta>,
     outputs: LayerOutputs,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
-    render_imperfect_with_ids(
-        layer, region, out, shading, spacing_um, outputs, None, progress,
-    )
+    render_imperfect_with_ids(layer, region, out, shading, meta, outputs, None, progress)
 }
 
 /// [`render_imperfect`] whose mask also carries `extra` ids (a defect layer's under the
@@ -417,11 +415,12 @@ pub fn render_imperfect_with_ids<S: Surface>(
     region: &Region,
     out: &Path,
     shading: Option<&ShadeOptions>,
-    spacing_um: Option<f64>,
+    meta: impl Into<OutputMeta>,
     outputs: LayerOutputs,
     extra: Option<MaskIds>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<()> {
+    let meta = meta.into();
     let format = Format::from_path(out)?;
     outputs.validate()?;
     let mut named = vec![("out", out)];
@@ -507,10 +506,13 @@ pub fn render_imperfect_with_ids<S: Surface>(
     let mut staged = crate::io::Staged::new();
     if shading.is_none() {
         let raster = Raster::from_vec(w, h, 1, crop(&all.heights, gw, region, pad))?;
-        write_heights(
+        crate::io::write_finite(
             &staged.path(out),
             &raster,
-            spacing_um.map(|s| s * region.step),
+            &crate::io::WriteMeta {
+                levels: meta.levels,
+                ..crate::io::WriteMeta::um(meta.spacing_um.map(|s| s * region.step))
+            },
         )?;
     }
     if shading.is_some() || outputs.colour.is_some() {

@@ -1497,6 +1497,24 @@ fn grey_photo_renders_keep_their_levels() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     let bank = Bank::read(&dir.path().join("slate.bank")).unwrap();
     assert_eq!(bank.header.exemplar.levels, Some(255.0));
+    // Plane-levelled, the photo lies about 0: no scale to keep.
+    let r = surftile(
+        dir.path(),
+        &["bake", &photo, "--level", "plane", "--out", "plane.bank"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let plane = Bank::read(&dir.path().join("plane.bank")).unwrap();
+    assert_eq!(plane.header.exemplar.levels, None);
+    assert!(
+        plane.header.bake.contains("level=Plane"),
+        "{}",
+        plane.header.bake
+    );
+    assert!(
+        bank.header.bake.contains("flat field of degree 2"),
+        "{}",
+        bank.header.bake
+    );
     let levels_of = |name: &str| {
         let decoder = png::Decoder::new(std::io::BufReader::new(
             std::fs::File::open(dir.path().join(name)).unwrap(),

@@ -29,8 +29,9 @@
 //!    a height map gets rpn as above; a photo gets rpn only if one RPN realisation of a
 //!    128² crop scores at least as well on coherence (the structure figures' patch
 //!    measure) as a trial of the structured method of the same size, and otherwise that
-//!    method. On the four photos above RPN scores 0.95–1.09 and RSGF 0.19–0.29 (paper,
-//!    8-bit grey: 4.69 against 0.96), so none gets rpn. The trial runs on the centred
+//!    method. On the four photos above RPN scores 0.98–1.08 and RSGF 0.19–0.23 (paper,
+//!    8-bit grey: 4.59 against 1.01; flat-fielded as bake prepares photos, re-measured
+//!    2026-11-27), so none gets rpn. The trial runs on the centred
 //!    256² crop, so it costs about a second on any photo (a 1024² one: 1.8 s for the
 //!    whole bake, 0.55 s of it RSGF's own).
 //!

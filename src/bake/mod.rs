@@ -152,7 +152,8 @@ impl BakerBuilder {
         self.0.seed = seed;
         self
     }
-    /// Plane levelling. Default: [`Leveling::Auto`].
+    /// Form removal. Default: [`Leveling::Auto`] (the plane off a height map, the flat
+    /// field of a photo).
     pub fn leveling(mut self, leveling: Leveling) -> Self {
         self.0.leveling = leveling;
         self
@@ -440,6 +441,20 @@ impl Baker {
         Ok((raster, spacing))
     }
 
+    /// The form removal as the bank records it: the `--level` given, and where the
+    /// default meets a photo (`raw` as read), the flat field that replaces it.
+    fn level_text(&self, raw: &Raster) -> String {
+        if self.leveling == crate::prep::Leveling::Auto && crate::bake::auto::is_photo(raw) {
+            format!(
+                "{:?} (photo: flat field of degree {})",
+                self.leveling,
+                crate::prep::level::ILLUMINATION_DEGREE
+            )
+        } else {
+            format!("{:?}", self.leveling)
+        }
+    }
+
     /// The preprocessed exemplar and what every bank header records of it: exemplar
     /// statistics, spacing, seed and the preprocessing parameters as text.
     fn preprocess_with_header(
@@ -453,15 +468,8 @@ impl Baker {
             spacing_um,
             self.seed,
             format!(
-                "level={:?}{} downsample={} filter={:?} fill_missing={}",
-                self.leveling,
-                if self.leveling == crate::prep::Leveling::Auto
-                    && crate::bake::auto::is_photo(&image.raster)
-                {
-                    " (photo: flat field of degree 2)"
-                } else {
-                    ""
-                },
+                "level={} downsample={} filter={:?} fill_missing={}",
+                self.level_text(&image.raster),
                 self.downsample,
                 self.filter,
                 self.fill_missing
@@ -663,11 +671,11 @@ impl Baker {
             seed: self.seed,
             exemplar,
             bake: format!(
-                "method={} patch={pw}x{ph} bank_size={} seed={} level={:?} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
+                "method={} patch={pw}x{ph} bank_size={} seed={} level={} downsample={} filter={:?} fill_missing={} triangle_edge={edge} taper={:?}",
                 self.method,
                 self.bank_size,
                 self.seed,
-                self.leveling,
+                self.level_text(&image.raster),
                 self.downsample,
                 self.filter,
                 self.fill_missing,
@@ -755,12 +763,12 @@ impl Baker {
             seed: self.seed,
             exemplar: exemplar_info(&ex, &image.raster, source),
             bake: format!(
-                "method=quilt colours={} patch={side} edge={} band={} seed={} level={:?} downsample={} filter={:?} fill_missing={}",
+                "method=quilt colours={} patch={side} edge={} band={} seed={} level={} downsample={} filter={:?} fill_missing={}",
                 layout.colours,
                 layout.edge,
                 layout.band,
                 self.seed,
-                self.leveling,
+                self.level_text(&image.raster),
                 self.downsample,
                 self.filter,
                 self.fill_missing
@@ -937,7 +945,7 @@ impl Baker {
             seed: self.seed,
             exemplar: exemplar_info(&ex, &image.raster, source),
             bake: format!(
-                "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} phase={:?} level={:?} downsample={} filter={:?} fill_missing={}",
+                "method=roller lattice=({},{});({},{}) tiles={} overlap={} origins={:?} phase={:?} level={} downsample={} filter={:?} fill_missing={}",
                 u.0,
                 u.1,
                 v.0,
@@ -946,7 +954,7 @@ impl Baker {
                 rt.overlap,
                 rt.origins,
                 rt.phase,
-                self.leveling,
+                self.level_text(&image.raster),
                 self.downsample,
                 self.filter,
                 self.fill_missing
@@ -983,7 +991,10 @@ pub(crate) fn exemplar_info(ex: &Raster, raw: &Raster, source: &str) -> Exemplar
             .map(|s| quantile_levels.iter().map(|&p| quantile(s, p)).collect())
             .collect(),
         quantile_levels,
-        levels: crate::io::photo_full_scale(raw),
+        // Only where the preparation kept the photo's scale (the flat field, or none):
+        // a plane-levelled photo lies about 0.
+        levels: crate::io::photo_full_scale(raw)
+            .filter(|&full| ex.data.iter().all(|&v| (0.0..=full).contains(&v))),
     }
 }
 

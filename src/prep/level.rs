@@ -220,9 +220,10 @@ pub fn level_poly(raster: &mut Raster, degree: u8) {
 pub const ILLUMINATION_DEGREE: u8 = 2;
 
 /// Flat-fields a photo: subtracts from each channel its least-squares polynomial of
-/// `degree` ([`fit_poly`]) less that polynomial's mean, so the channel keeps its mean
-/// and loses the light that falls across the frame (a lamp's falloff, a vignette), and
-/// clamps the result to the channel's own range, so levels stay on the photo's scale.
+/// `degree` ([`fit_poly`]) less that polynomial's mean over the finite samples, so the
+/// channel keeps its mean (before the clamp) and loses the light that falls across the
+/// frame (a lamp's falloff, a vignette), and clamps the result to the channel's own
+/// range, so levels stay on the photo's scale. NaN samples stay NaN.
 ///
 /// A synthesis copies pieces of the exemplar to places that have nothing to do with
 /// where they were taken; a light gradient across a 100-px photo then shows as blocks
@@ -242,8 +243,13 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) {
             continue;
         }
         let form = fit_poly(&plane, raster.width, degree);
-        let finite: Vec<f64> = form.iter().copied().filter(|f| f.is_finite()).collect();
-        let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+        // The form's mean over the samples there are, so that their mean stays.
+        let (sum, n) = plane
+            .iter()
+            .zip(&form)
+            .filter(|(z, f)| z.is_finite() && f.is_finite())
+            .fold((0.0, 0usize), |(s, n), (_, f)| (s + f, n + 1));
+        let mean = sum / n.max(1) as f64;
         for (z, f) in plane.iter_mut().zip(&form) {
             if z.is_finite() && f.is_finite() {
                 *z = (*z - (f - mean)).clamp(lo, hi);
