@@ -1469,6 +1469,11 @@ fn run(command: Command) -> Result<()> {
                 Some(d) => d.fill_ids(r, ids),
                 None => Ok(()),
             };
+            // The spacing, and a photo's scale, that the height output records.
+            let meta = surftile::render::OutputMeta {
+                spacing_um: spec.spacing_um(),
+                levels: spec.bank().and_then(|b| b.header.exemplar.levels),
+            };
             let start = Instant::now();
             if let Some((config, _)) = spec.imperfection() {
                 let layer = spec
@@ -1479,10 +1484,7 @@ fn run(command: Command) -> Result<()> {
                     &region,
                     &out,
                     shading.as_ref(),
-                    surftile::render::OutputMeta {
-                        spacing_um: spec.spacing_um(),
-                        levels: spec.bank().and_then(|b| b.header.exemplar.levels),
-                    },
+                    meta,
                     outputs,
                     defects.as_ref().map(|_| &defect_ids as MaskIds),
                     &mut progress_reporter("render"),
@@ -1501,10 +1503,7 @@ fn run(command: Command) -> Result<()> {
                 &region,
                 &out,
                 shading.as_ref(),
-                surftile::render::OutputMeta {
-                    spacing_um: spec.spacing_um(),
-                    levels: spec.bank().and_then(|b| b.header.exemplar.levels),
-                },
+                meta,
                 mask.as_deref().map(|m| (m, &defect_ids as MaskIds)),
                 &mut progress_reporter("render"),
             )?;

@@ -173,6 +173,16 @@ pub struct OutputMeta {
     pub levels: Option<f32>,
 }
 
+impl OutputMeta {
+    /// What the file of a region sampled every `step` pixels records.
+    fn write_meta(&self, step: f64) -> crate::io::WriteMeta {
+        crate::io::WriteMeta {
+            levels: self.levels,
+            ..crate::io::WriteMeta::um(self.spacing_um.map(|s| s * step))
+        }
+    }
+}
+
 impl From<Option<f64>> for OutputMeta {
     fn from(spacing_um: Option<f64>) -> OutputMeta {
         OutputMeta {
@@ -219,14 +229,7 @@ pub fn render_to_file(
         return write_png8(out, region.width, region.height, 1, &pixels);
     }
     let raster = render_region(surface, region, progress)?;
-    crate::io::write_finite(
-        out,
-        &raster,
-        &crate::io::WriteMeta {
-            levels: meta.levels,
-            ..crate::io::WriteMeta::um(meta.spacing_um.map(|s| s * region.step))
-        },
-    )
+    crate::io::write_finite(out, &raster, &meta.write_meta(region.step))
 }
 
 /// What [`render_to_file`] checks before anything is filled or allocated: the output's
@@ -506,14 +509,7 @@ pub fn render_imperfect_with_ids<S: Surface>(
     let mut staged = crate::io::Staged::new();
     if shading.is_none() {
         let raster = Raster::from_vec(w, h, 1, crop(&all.heights, gw, region, pad))?;
-        crate::io::write_finite(
-            &staged.path(out),
-            &raster,
-            &crate::io::WriteMeta {
-                levels: meta.levels,
-                ..crate::io::WriteMeta::um(meta.spacing_um.map(|s| s * region.step))
-            },
-        )?;
+        crate::io::write_finite(&staged.path(out), &raster, &meta.write_meta(region.step))?;
     }
     if shading.is_some() || outputs.colour.is_some() {
         let o = shading.copied().unwrap_or_default();

@@ -206,6 +206,18 @@ fn render_writes_exr_and_normal_maps() {
     }
 }
 
+/// The one-line error of reading `bytes` as an EXR named `name` (it must fail).
+fn exr_error(bytes: &[u8], name: &str) -> String {
+    surftile::io::read_image_bytes(
+        bytes,
+        surftile::io::Format::Exr,
+        name,
+        &ReadOptions::default(),
+    )
+    .unwrap_err()
+    .to_string()
+}
+
 /// EXR fuzz findings, kept in `fuzz/seeds/exr/`, each refused before decoding with a
 /// one-line error naming the file:
 /// - a single-resolution tiled file whose tile chunk claims resolution level (0, 1), on
@@ -220,14 +232,7 @@ fn exr_fuzz_findings_are_refused() {
         ("tile-larger-than-the-image.exr", "825194048×131585"),
     ] {
         let bytes = std::fs::read(common::repo(&format!("fuzz/seeds/exr/{seed}"))).unwrap();
-        let e = surftile::io::read_image_bytes(
-            &bytes,
-            surftile::io::Format::Exr,
-            "lying.exr",
-            &ReadOptions::default(),
-        )
-        .unwrap_err()
-        .to_string();
+        let e = exr_error(&bytes, "lying.exr");
         assert!(
             e.contains("lying.exr") && e.contains(needle) && !e.contains('\n'),
             "{seed}: {e}"
@@ -254,14 +259,7 @@ fn exr_claiming_a_huge_layer_is_refused() {
     // xMax and yMax of the box (xMin, yMin, xMax, yMax as i32).
     bytes[at + 8..at + 12].copy_from_slice(&19_999i32.to_le_bytes());
     bytes[at + 12..at + 16].copy_from_slice(&19_999i32.to_le_bytes());
-    let e = surftile::io::read_image_bytes(
-        &bytes,
-        surftile::io::Format::Exr,
-        "huge.exr",
-        &ReadOptions::default(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = exr_error(&bytes, "huge.exr");
     assert!(e.contains("huge.exr") && !e.contains('\n'), "{e}");
 }
 
