@@ -79,6 +79,11 @@ impl RsgfOptions {
             }
             (b, o, _) => (b.unwrap_or(DEFAULT_BLOCK), o.unwrap_or(DEFAULT_BORDER)),
         };
+        let wrap = self.stochastic
+            && ex.is_some_and(|ex| {
+                block_px + 4 * border_px <= ex.width.min(ex.height)
+                    && coverage_bias(ex, block_px).misses_a_bar()
+            });
         let feather_px = self.feather_px.unwrap_or_else(|| {
             let chosen = match ex {
                 Some(ex) if self.stochastic && self.join == Join::Cut => stochastic_feather(ex),
@@ -99,9 +104,12 @@ impl RsgfOptions {
             join: self.join,
             feather_px,
             histogram: None,
-            // Only cuts can keep the mirrored pixels out of the output; a linear blend
-            // would show them across every overlap.
-            reflect_edges: self.stochastic && self.join == Join::Cut,
+            // A stochastic exemplar that holds a patch and the torus's overlap wraps;
+            // a smaller one hangs its patches over mirrored edges, which only cuts
+            // keep out of the output (a linear blend would show them across every
+            // overlap).
+            reflect_edges: self.stochastic && self.join == Join::Cut && !wrap,
+            wrap_edges: wrap,
             v1,
             v2,
         }
@@ -171,6 +179,88 @@ pub fn object_scale(ex: &Raster) -> f64 {
     (1..=r_max)
         .find(|&d| sum[d] / (count[d].max(1) as f64) < SCALE_ACF)
         .unwrap_or(r_max) as f64
+}
+
+/// What the output's histogram would show of an exemplar if blocks were copied from
+/// bounded positions ([`RsgfParams::reflect_edges`]): the exemplar weighted by how
+/// often each of its pixels lies in a block, against the exemplar.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoverageBias {
+    /// Worst channel's W1 between the weighted and the plain histogram, over the
+    /// channel's standard deviation (as `stats::wasserstein1_standardised`).
+    pub w1: f64,
+    /// The channel's weighted standard deviation over its plain one, for the channel
+    /// farthest from 1.
+    pub sd_ratio: f64,
+}
+
+/// The W1 bar of the structure figures (issue 31), which [`CoverageBias`] is held to.
+pub const COVERAGE_W1_BAR: f64 = 0.05;
+/// The standard-deviation bar (within 5%).
+pub const COVERAGE_SD_BAR: f64 = 0.05;
+
+impl CoverageBias {
+    /// Whether the coverage alone misses the W1 or the standard-deviation bar: blocks
+    /// should then wrap around the exemplar made periodic
+    /// ([`RsgfParams::wrap_edges`]), where every pixel is shown about equally.
+    pub fn misses_a_bar(&self) -> bool {
+        self.w1 >= COVERAGE_W1_BAR || (self.sd_ratio - 1.0).abs() >= COVERAGE_SD_BAR
+    }
+}
+
+/// The [`CoverageBias`] of `ex` under blocks of `block` px at bounded positions: a
+/// block shows exemplar columns [p, p + B) for p in [0, W − B] (edges reflected by the
+/// border, so the patch's border may hang over), so column x is shown by
+/// min(x + 1, B, W − x, W − B + 1) of them, and pixel (x, y) by the product of its
+/// column's and its row's counts. On the 100² dried-mud photo: W1 0.06 and 0.91 of
+/// the standard deviation, which the output shows too (0.064 and 0.902 at 512²,
+/// `docs/structure.md`); on the 256² scikit-image photos 0.006–0.012 and 1.00–1.02.
+pub fn coverage_bias(ex: &Raster, block: usize) -> CoverageBias {
+    let (w, h, c) = (ex.width, ex.height, ex.channels);
+    let count = |n: usize| -> Vec<f64> {
+        let b = block.min(n);
+        (0..n)
+            .map(|x| (x + 1).min(b).min(n - x).min(n - b + 1) as f64)
+            .collect()
+    };
+    let (cx, cy) = (count(w), count(h));
+    let weights: Vec<f64> = (0..w * h).map(|i| cx[i % w] * cy[i / w]).collect();
+    let total: f64 = weights.iter().sum();
+    let mut out = CoverageBias {
+        w1: 0.0,
+        sd_ratio: 1.0,
+    };
+    for ch in 0..c {
+        let v: Vec<f64> = (0..w * h).map(|i| ex.data[i * c + ch] as f64).collect();
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        if sd.is_nan() || sd <= 0.0 {
+            continue;
+        }
+        let wmean = v.iter().zip(&weights).map(|(x, k)| x * k).sum::<f64>() / total;
+        let wsd = (v
+            .iter()
+            .zip(&weights)
+            .map(|(x, k)| k * (x - wmean).powi(2))
+            .sum::<f64>()
+            / total)
+            .sqrt();
+        let mut order: Vec<usize> = (0..v.len()).collect();
+        order.sort_by(|&a, &b| v[a].total_cmp(&v[b]));
+        let (mut f, mut fw, mut w1) = (0.0, 0.0, 0.0);
+        for pair in order.windows(2) {
+            f += 1.0 / n;
+            fw += weights[pair[0]] / total;
+            w1 += (f - fw).abs() * (v[pair[1]] - v[pair[0]]);
+        }
+        out.w1 = out.w1.max(w1 / sd);
+        let ratio = wsd / sd;
+        if (ratio - 1.0).abs() > (out.sd_ratio - 1.0).abs() {
+            out.sd_ratio = ratio;
+        }
+    }
+    out
 }
 
 /// The block of a stochastic bank, scaled to the exemplar's objects: B =
@@ -285,9 +375,10 @@ const MAP_STEPS: usize = 64;
 /// 40-px block sits at 61 positions per axis of a 100-px exemplar (edges reflected,
 /// [`RsgfParams::reflect_edges`]), so an edge pixel is in 1 where a central one is in
 /// 40, and the output's histogram leans to the middle's. On the 100² dried-mud photo
-/// that is a W1 of 0.06–0.07 and a standard deviation of 0.90–0.91 of the exemplar's (512²);
-/// the map brings them to 0.016 and 0.99
-/// (`tests/rsgf.rs::a_histogram_map_restores_small_exemplars`). It is off by default:
+/// that is a W1 of 0.06–0.07 and a standard deviation of 0.90–0.91 of the exemplar's
+/// (512²). Such an exemplar now wraps ([`coverage_bias`], [`RsgfParams::wrap_edges`]:
+/// 0.024–0.029 and 0.958–0.967); the map takes either to 0.006–0.007 and 0.995–0.996
+/// (`tests/rsgf.rs::small_exemplars_wrap_and_keep_their_histogram`). It is off by default:
 /// mapped values are no longer the exemplar's, and the patch figures pay for it
 /// (measured before reflected edges, 1024²: coherence 0.238 → 0.367, PSD error
 /// 0.042 → 0.133 on that photo). None for a flat channel.
@@ -397,6 +488,19 @@ pub(crate) fn bake(
         }
     };
     let params = options.params_for(ex, v1, v2);
+    if options.stochastic {
+        let bias = coverage_bias(ex, params.block_px);
+        progress(&format!(
+            "edges {}: blocks at bounded positions would show the exemplar with W1 {:.3} and {:.3} of its standard deviation (bars {COVERAGE_W1_BAR} and ±{COVERAGE_SD_BAR})",
+            if params.wrap_edges {
+                "wrapped around the exemplar made periodic"
+            } else {
+                "reflected"
+            },
+            bias.w1,
+            bias.sd_ratio
+        ));
+    }
     // Building the model checks the lattice against the exemplar, as loading will.
     let model = RsgfModel::new(ex, &params)?;
     // The bank keeps the exemplar's own chain (the model's may be extended by its
@@ -447,7 +551,7 @@ pub(crate) fn bake(
         seed,
         exemplar,
         bake: format!(
-            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} join={:?} feather={} stochastic={} reflect_edges={} {bake_text}",
+            "method=rsgf v1=({},{}) v2=({},{}) block={} border={} tolerance={} metric={:?} join={:?} feather={} stochastic={} reflect_edges={} wrap_edges={} {bake_text}",
             v1.0,
             v1.1,
             v2.0,
@@ -459,7 +563,8 @@ pub(crate) fn bake(
             params.join,
             params.feather_px,
             options.stochastic,
-            params.reflect_edges
+            params.reflect_edges,
+            params.wrap_edges
         ),
         record: Record::Rsgf(
             serde_json::to_value(&params)

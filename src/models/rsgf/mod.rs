@@ -105,6 +105,21 @@ pub struct RsgfParams {
     /// samples, which blend patches read from the mip chain, may show them faintly.
     #[serde(default)]
     pub reflect_edges: bool,
+    /// Patches wrap around the exemplar made periodic: a torus 2·`border_px` smaller
+    /// per axis, whose seams are minimum-error cuts through the columns and rows that
+    /// its opposite edges share (`wrap_torus` in the model). Every torus position is
+    /// a patch position, so every exemplar pixel is shown about equally often, and a
+    /// block's phase no longer tells which exemplar rows it shows. With a block edge at
+    /// a fixed place and its patch at a bounded position p, pixel u of a block shows
+    /// exemplar row p + u, so the rows near the block's top come from the exemplar's
+    /// upper part and those near its bottom from its lower part: the gradient energy
+    /// per phase of the block grid follows the exemplar's rows, and the edges of a
+    /// small exemplar are shown less than its middle (see docs/structure.md). On a
+    /// torus p + u is uniform for every u. Default on in stochastic mode where the
+    /// exemplar holds a patch and the overlap (`bake::rsgf`); banks that do not record
+    /// it: off. Not with `reflect_edges`.
+    #[serde(default)]
+    pub wrap_edges: bool,
     /// Translation vectors v₁, v₂ in pixels ((1, 0), (0, 1) in stochastic mode).
     pub v1: (i64, i64),
     /// See `v1`.
@@ -133,6 +148,7 @@ impl RsgfParams {
             feather_px: DEFAULT_FEATHER,
             histogram: None,
             reflect_edges: false,
+            wrap_edges: false,
             v1,
             v2,
         }
@@ -186,6 +202,13 @@ impl RsgfParams {
                 "cuts (join = cut): only a cut keeps the mirrored pixels out of the output",
             ));
         }
+        if self.reflect_edges && self.wrap_edges {
+            return Err(Error::param(
+                "edges",
+                "reflected and wrapped",
+                "one of reflect_edges and wrap_edges: a patch either hangs over mirrored edges or wraps around a torus",
+            ));
+        }
         if self.tolerance_px > 64 {
             return Err(Error::param(
                 "tolerance",
@@ -206,6 +229,15 @@ impl RsgfParams {
                 "block",
                 self.block_px,
                 format!("at most the exemplar's smaller side ({w}×{h})"),
+            ));
+        }
+        if self.wrap_edges && ext + 2 * self.border_px > w.min(h) {
+            return Err(Error::param(
+                "block + 4 × border",
+                ext + 2 * self.border_px,
+                format!(
+                    "at most the exemplar's smaller side ({w}×{h}) with wrapped edges: the torus, 2 × border smaller than the exemplar, holds a whole patch"
+                ),
             ));
         }
         if !self.reflect_edges && ext > w.min(h) {
