@@ -21,6 +21,7 @@ use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
+use surftile::models::rsgf::Edges;
 use surftile::models::synth::SynthParams;
 use surftile::prep::level::level_plane;
 use surftile::raster::Raster;
@@ -49,6 +50,9 @@ struct Args {
     /// RSGF: cut feather (negative: the default).
     #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
     feather: i64,
+    /// RSGF: how patches meet the exemplar's edges: auto, reflect or wrap.
+    #[arg(long, default_value = "auto")]
+    edges: String,
     /// Skip texture-synthesis (slow).
     #[arg(long)]
     no_embark: bool,
@@ -122,6 +126,14 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         block_px: (args.block > 0).then_some(args.block),
         border_px: (args.border > 0).then_some(args.border),
         feather_px: usize::try_from(args.feather).ok(),
+        edges: match args.edges.as_str() {
+            "auto" => Edges::Auto,
+            "reflect" => Edges::Reflect,
+            "wrap" => Edges::Wrap,
+            other => {
+                return Err(format!("--edges {other}: expected auto, reflect or wrap").into());
+            }
+        },
         ..RsgfOptions::default()
     };
     let block = options.params_for(&image.raster, (1, 0), (0, 1)).block_px;

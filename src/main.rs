@@ -19,7 +19,7 @@ use surftile::io::{
     write_heights_with,
 };
 use surftile::models::milling::{MillingConfig, MillingSurface};
-use surftile::models::rsgf::{Join, Metric};
+use surftile::models::rsgf::{Edges, Join, Metric};
 use surftile::models::synth::SynthParams;
 use surftile::normals::NormalConvention;
 use surftile::prep::resample::DownsampleFilter;
@@ -256,6 +256,11 @@ enum Command {
         /// patch coherence).
         #[arg(long)]
         match_histogram: bool,
+        /// RSGF, stochastic: how patches meet the exemplar's edges: wrap around the
+        /// exemplar made periodic, or hang over its mirrored edges; auto wraps where
+        /// blocks at bounded positions would miss the exemplar's histogram.
+        #[arg(long, value_enum, default_value_t = Edges::Auto)]
+        edges: Edges,
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,
@@ -700,7 +705,7 @@ fn main() -> ExitCode {
 }
 
 /// The library's parameter names, as its messages quote them, and this CLI's flags.
-const FLAGS: [(&str, &str); 30] = [
+const FLAGS: [(&str, &str); 31] = [
     ("fill_missing", "--fill-missing"),
     ("stochastic", "--stochastic"),
     ("lattice", "--lattice"),
@@ -723,6 +728,7 @@ const FLAGS: [(&str, &str); 30] = [
     ("join", "--join"),
     ("feather", "--feather"),
     ("match_histogram", "--match-histogram"),
+    ("edges", "--edges"),
     ("levels", "--levels"),
     ("k", "--k"),
     ("passes", "--passes"),
@@ -1275,6 +1281,7 @@ fn run(command: Command) -> Result<()> {
             feather,
             stochastic,
             match_histogram,
+            edges,
             colours,
             levels,
             k,
@@ -1313,6 +1320,7 @@ fn run(command: Command) -> Result<()> {
                 feather_px: feather,
                 stochastic,
                 histogram: match_histogram,
+                edges,
             };
             builder = builder.rsgf(rsgf);
             let synth = SynthParams {

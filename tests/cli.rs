@@ -1558,3 +1558,70 @@ fn grey_photo_renders_keep_their_levels() {
         (0, 65535)
     );
 }
+
+/// `bake --edges` chooses how a stochastic RSGF bank's patches meet the exemplar's
+/// edges, and the bank records it: by default the 100² dried-mud photo, which blocks at
+/// bounded positions would show with 0.91 of its standard deviation, wraps and says
+/// why; `--edges reflect` keeps mirrored edges; `--edges` without `--stochastic`, and
+/// a wrap on an exemplar too small for the torus, are refused with the flag named.
+#[test]
+fn bake_edges_choose_wrapped_or_reflected_patches() {
+    let dir = tempfile::tempdir().unwrap();
+    let mud = common::repo("tests/data/gimp-dried-mud.png")
+        .display()
+        .to_string();
+    let bake = |extra: &[&str], out: &str| {
+        let mut args = vec!["bake", &mud, "--method", "rsgf", "--stochastic"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--out", out]);
+        surftile(dir.path(), &args)
+    };
+    let r = bake(&[], "auto.bank");
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("edges wrapped") && r.stderr.contains("0.91"),
+        "{}",
+        r.stderr
+    );
+    let auto = Bank::read(&dir.path().join("auto.bank")).unwrap();
+    assert!(
+        auto.header
+            .bake
+            .contains("reflect_edges=false wrap_edges=true"),
+        "{}",
+        auto.header.bake
+    );
+    let r = bake(&["--edges", "reflect"], "reflect.bank");
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("edges reflected"), "{}", r.stderr);
+    let reflect = Bank::read(&dir.path().join("reflect.bank")).unwrap();
+    assert!(
+        reflect
+            .header
+            .bake
+            .contains("reflect_edges=true wrap_edges=false"),
+        "{}",
+        reflect.header.bake
+    );
+    let r = surftile(
+        dir.path(),
+        &[
+            "bake", &mud, "--method", "rsgf", "--edges", "wrap", "--out", "x.bank",
+        ],
+    );
+    assert!(
+        r.code != 0 && r.stderr.contains("--edges") && r.stderr.contains("--stochastic"),
+        "{}",
+        r.stderr
+    );
+    let r = bake(
+        &["--edges", "wrap", "--block", "60", "--border", "12"],
+        "y.bank",
+    );
+    assert!(
+        r.code != 0 && r.stderr.contains("block + 4 × border") && r.stderr.contains("100×100"),
+        "{}",
+        r.stderr
+    );
+    assert!(!dir.path().join("x.bank").exists() && !dir.path().join("y.bank").exists());
+}

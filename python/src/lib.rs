@@ -703,7 +703,7 @@ fn pair_param(name: &str, value: &Bound<'_, PyAny>, sep: char) -> PyResult<(i64,
 }
 
 /// The keywords `bake` takes besides method, spacing_um and seed: the CLI's flags.
-const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels";
+const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels";
 
 /// The builder with the keywords applied, in the order given.
 fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyResult<BakerBuilder> {
@@ -796,6 +796,10 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
             }
             "match_histogram" => {
                 rsgf.histogram = bool_param(k, &v)?;
+                b
+            }
+            "edges" => {
+                rsgf.edges = enum_param(k, &v, "auto, reflect, wrap")?;
                 b
             }
             "colours" => b.colours(count_param(k, &v)?),

@@ -259,7 +259,7 @@ impl BakerBuilder {
         )?;
         only(
             m == Rsgf || b.rsgf == RsgfOptions::default(),
-            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram` or `stochastic`",
+            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram`, `edges` or `stochastic`",
             "rsgf",
         )?;
         only(
@@ -275,6 +275,13 @@ impl BakerBuilder {
                 ..b.synth.clone()
             }
             .validate()?;
+        }
+        if !b.rsgf.stochastic && b.rsgf.edges != crate::models::rsgf::Edges::Auto {
+            return Err(Error::param(
+                "`edges`",
+                format!("{:?}", b.rsgf.edges).to_lowercase(),
+                "auto without `stochastic`: a lattice bank's patches stay inside the exemplar",
+            ));
         }
         if b.rsgf.stochastic && b.lattice.is_some() {
             return Err(Error::param(

@@ -10,7 +10,7 @@ use crate::analysis::translation::{
 use crate::bank::{Bank, BankHeader, ExemplarInfo, LevelInfo, Method, Record};
 use crate::error::Result;
 use crate::models::rsgf::{
-    DEFAULT_FEATHER, Join, Metric, RsgfModel, RsgfParams, RsgfSurface, mip_chain,
+    DEFAULT_FEATHER, Edges, Join, Metric, RsgfModel, RsgfParams, RsgfSurface, mip_chain,
 };
 use crate::raster::Raster;
 use crate::stream::{Region, Surface};
@@ -40,6 +40,9 @@ pub struct RsgfOptions {
     /// In stochastic mode, map output values so that their histogram is the exemplar's
     /// ([`histogram_map`]; default off: it costs coherence).
     pub histogram: bool,
+    /// In stochastic mode, how patches meet the exemplar's edges (default: by the
+    /// exemplar's [`coverage_bias`]).
+    pub edges: Edges,
 }
 
 impl Default for RsgfOptions {
@@ -54,6 +57,7 @@ impl Default for RsgfOptions {
             feather_px: None,
             stochastic: false,
             histogram: false,
+            edges: Edges::Auto,
         }
     }
 }
@@ -80,10 +84,14 @@ impl RsgfOptions {
             (b, o, _) => (b.unwrap_or(DEFAULT_BLOCK), o.unwrap_or(DEFAULT_BORDER)),
         };
         let wrap = self.stochastic
-            && ex.is_some_and(|ex| {
-                block_px + 4 * border_px <= ex.width.min(ex.height)
-                    && coverage_bias(ex, block_px).misses_a_bar()
-            });
+            && match self.edges {
+                Edges::Wrap => true,
+                Edges::Reflect => false,
+                Edges::Auto => ex.is_some_and(|ex| {
+                    block_px + 4 * border_px <= ex.width.min(ex.height)
+                        && coverage_bias(ex, block_px).misses_a_bar()
+                }),
+            };
         let feather_px = self.feather_px.unwrap_or_else(|| {
             let chosen = match ex {
                 Some(ex) if self.stochastic && self.join == Join::Cut => stochastic_feather(ex),

@@ -61,6 +61,22 @@ pub enum Join {
     Cut,
 }
 
+/// How a stochastic bank's patches meet the exemplar's edges (the bake's choice,
+/// recorded as [`RsgfParams::reflect_edges`] or [`RsgfParams::wrap_edges`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Edges {
+    /// Wrap where blocks at bounded positions would miss the exemplar's histogram
+    /// (`bake::rsgf::coverage_bias`) and the exemplar holds the torus; else reflect.
+    #[default]
+    Auto,
+    /// Patches hang over the exemplar's edges, mirrored ([`RsgfParams::reflect_edges`]).
+    Reflect,
+    /// Patches wrap around the exemplar made periodic ([`RsgfParams::wrap_edges`]).
+    Wrap,
+}
+
 /// RSGF synthesis parameters (all lengths in exemplar pixels).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RsgfParams {
