@@ -1562,8 +1562,9 @@ fn grey_photo_renders_keep_their_levels() {
 /// `bake --edges` chooses how a stochastic RSGF bank's patches meet the exemplar's
 /// edges, and the bank records it: by default the 100² dried-mud photo, which blocks at
 /// bounded positions would show with 0.91 of its standard deviation, wraps and says
-/// why; `--edges reflect` keeps mirrored edges; `--edges` without `--stochastic`, and
-/// a wrap on an exemplar too small for the torus, are refused with the flag named.
+/// why, with the torus's size; `--edges reflect` keeps mirrored edges; `--edges`
+/// without `--stochastic`, mirrored edges with blended patches, and a wrap on an
+/// exemplar too small for the torus are refused with the flags named.
 #[test]
 fn bake_edges_choose_wrapped_or_reflected_patches() {
     let dir = tempfile::tempdir().unwrap();
@@ -1579,7 +1580,9 @@ fn bake_edges_choose_wrapped_or_reflected_patches() {
     let r = bake(&[], "auto.bank");
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(
-        r.stderr.contains("edges wrapped") && r.stderr.contains("0.91"),
+        r.stderr.contains("edges wrapped")
+            && r.stderr.contains("torus")
+            && r.stderr.contains("0.91"),
         "{}",
         r.stderr
     );
@@ -1614,6 +1617,12 @@ fn bake_edges_choose_wrapped_or_reflected_patches() {
         "{}",
         r.stderr
     );
+    let r = bake(&["--edges", "reflect", "--join", "blend"], "z.bank");
+    assert!(
+        r.code != 0 && r.stderr.contains("--edges") && r.stderr.contains("--join"),
+        "{}",
+        r.stderr
+    );
     let r = bake(
         &["--edges", "wrap", "--block", "60", "--border", "12"],
         "y.bank",
@@ -1623,5 +1632,7 @@ fn bake_edges_choose_wrapped_or_reflected_patches() {
         "{}",
         r.stderr
     );
-    assert!(!dir.path().join("x.bank").exists() && !dir.path().join("y.bank").exists());
+    for refused in ["x.bank", "y.bank", "z.bank"] {
+        assert!(!dir.path().join(refused).exists(), "{refused}");
+    }
 }

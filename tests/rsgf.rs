@@ -880,6 +880,47 @@ fn bad_rsgf_input_is_refused() {
         torus.contains("block + 4 × border") && torus.contains("128×128"),
         "{torus}"
     );
+    let lattice = msg(RsgfParams {
+        wrap_edges: true,
+        ..RsgfParams::new((23, 0), (9, 19))
+    });
+    assert!(
+        lattice.contains("wrap_edges") && lattice.contains("stochastic mode"),
+        "{lattice}"
+    );
+    let ramp = msg(RsgfParams {
+        join: Join::Blend,
+        feather_px: 10,
+        reflect_edges: false,
+        wrap_edges: true,
+        ..RsgfParams::stochastic()
+    });
+    assert!(
+        ramp.contains("feather") && ramp.contains("wrapped edges"),
+        "{ramp}"
+    );
+    // At exactly B + 4·o on its shorter side, an exemplar wraps and streams.
+    let narrow = ex.crop(0, 0, 80, 120).unwrap();
+    let wrapped = RsgfSurface::new(
+        &narrow,
+        &RsgfParams {
+            reflect_edges: false,
+            wrap_edges: true,
+            ..RsgfParams::stochastic()
+        },
+        0,
+    )
+    .unwrap();
+    let (tw, th) = wrapped.model().torus().unwrap();
+    assert!(
+        (60..=80).contains(&tw) && (100..=120).contains(&th),
+        "{tw}×{th}"
+    );
+    let mut out = vec![0.0f32; 130 * 130];
+    wrapped
+        .fill(&Region::new(-7.0, 3.0, 130, 130), &mut out)
+        .unwrap();
+    assert!(out.iter().all(|v| v.is_finite()));
     let blend = msg(RsgfParams {
         join: Join::Blend,
         ..RsgfParams::stochastic()

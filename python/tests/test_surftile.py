@@ -244,6 +244,19 @@ def test_a_python_bake_writes_the_cli_bank(cli, exemplar, tmp_path):
     assert auto.info["method"] == "rpn", auto.log
 
 
+def test_edges_keyword_writes_the_cli_bank(cli, tmp_path):
+    mud = REPO / "tests/data/gimp-dried-mud.png"
+    for edges in ("reflect", "wrap"):
+        out = tmp_path / f"{edges}.bank"
+        cli("bake", mud, "--method", "rsgf", "--stochastic", "--edges", edges, "--out", out)
+        bank = surftile.bake(str(mud), method="rsgf", stochastic=True, edges=edges)
+        bank.save(tmp_path / f"py-{edges}.bank")
+        assert (tmp_path / f"py-{edges}.bank").read_bytes() == out.read_bytes(), edges
+        assert f"wrap_edges={str(edges == 'wrap').lower()}" in bank.info["bake"], bank.info["bake"]
+    with pytest.raises(ValueError, match=r"edges.*auto, reflect, wrap"):
+        surftile.bake(str(mud), method="rsgf", stochastic=True, edges="sideways")
+
+
 def test_info_equals_the_cli(cli, banks):
     for spec in (banks["roller"], banks["milling"], "rock", "parallel-d4-ae05"):
         assert surftile.open(spec).info == json.loads(cli("info", "--json", spec)), spec

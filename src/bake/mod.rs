@@ -279,8 +279,17 @@ impl BakerBuilder {
         if !b.rsgf.stochastic && b.rsgf.edges != crate::models::rsgf::Edges::Auto {
             return Err(Error::param(
                 "`edges`",
-                format!("{:?}", b.rsgf.edges).to_lowercase(),
-                "auto without `stochastic`: a lattice bank's patches stay inside the exemplar",
+                format!("{:?} without `stochastic`", b.rsgf.edges).to_lowercase(),
+                "`stochastic` with it (a lattice bank's patches stay inside the exemplar), or `edges` = auto",
+            ));
+        }
+        if b.rsgf.edges == crate::models::rsgf::Edges::Reflect
+            && b.rsgf.join != crate::models::rsgf::Join::Cut
+        {
+            return Err(Error::param(
+                "`edges`",
+                "reflect with `join` = blend",
+                "`join` = cut: only a cut keeps the mirrored pixels out of the output",
             ));
         }
         if b.rsgf.stochastic && b.lattice.is_some() {

@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 
 use model::Edge;
 pub(crate) use model::mip_chain;
-pub use model::{MAX_EXEMPLAR_PIXELS, RsgfModel};
+pub use model::{MAX_EXEMPLAR_PIXELS, RsgfModel, wrap_fits, wrapped_side};
 
 use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
@@ -68,7 +68,8 @@ pub enum Join {
 #[serde(rename_all = "lowercase")]
 pub enum Edges {
     /// Wrap where blocks at bounded positions would miss the exemplar's histogram
-    /// (`bake::rsgf::coverage_bias`) and the exemplar holds the torus; else reflect.
+    /// (`bake::rsgf::coverage_bias`) and the exemplar can wrap ([`wrap_fits`]); else
+    /// reflect (with cuts; blended patches keep to bounded positions).
     #[default]
     Auto,
     /// Patches hang over the exemplar's edges, mirrored ([`RsgfParams::reflect_edges`]).
@@ -116,14 +117,15 @@ pub struct RsgfParams {
     /// pixels serve the gap matching; cuts pay for each pixel that would show one (a
     /// million times the largest squared difference of a pixel), so none shows
     /// where a cut can avoid it (`tests/rsgf.rs::reflected_edges_show_the_exemplars_border`).
-    /// Default on in stochastic mode with cuts; banks that do not record it: off. With
+    /// Default on in stochastic mode with cuts, unless the bank wraps
+    /// ([`RsgfParams::wrap_edges`]); banks that do not record it: off. With
     /// [`Join::Blend`] the mirrored pixels would show across every overlap; zoomed-out
     /// samples, which blend patches read from the mip chain, may show them faintly.
     #[serde(default)]
     pub reflect_edges: bool,
-    /// Patches wrap around the exemplar made periodic: a torus 2·`border_px` smaller
-    /// per axis, whose seams are minimum-error cuts through the columns and rows that
-    /// its opposite edges share (`wrap_torus` in the model). Every torus position is
+    /// Patches wrap around the exemplar made periodic: a torus up to 2·`border_px`
+    /// smaller per axis (or not at all), whose seams are minimum-error cuts through the
+    /// columns and rows that its opposite edges share (`wrap_torus` in the model). Every torus position is
     /// a patch position, so every exemplar pixel is shown about equally often, and a
     /// block's phase no longer tells which exemplar rows it shows. With a block edge at
     /// a fixed place and its patch at a bounded position p, pixel u of a block shows
@@ -131,9 +133,12 @@ pub struct RsgfParams {
     /// upper part and those near its bottom from its lower part: the gradient energy
     /// per phase of the block grid follows the exemplar's rows, and the edges of a
     /// small exemplar are shown less than its middle (see docs/structure.md). On a
-    /// torus p + u is uniform for every u. Default on in stochastic mode where the
-    /// exemplar holds a patch and the overlap (`bake::rsgf`); banks that do not record
-    /// it: off. Not with `reflect_edges`.
+    /// torus p + u is uniform for every u. The bake turns it on in stochastic mode
+    /// where blocks at bounded positions would miss the exemplar's histogram
+    /// (`bake::rsgf::coverage_bias`) and the exemplar can wrap ([`wrap_fits`]), or
+    /// where `--edges wrap` asks; banks that do not record it: off. Stochastic (unit
+    /// lattice) only, not with `reflect_edges`, and with a ramp below the border (the
+    /// torus's seams ramp as block edges do, whatever the join).
     #[serde(default)]
     pub wrap_edges: bool,
     /// Translation vectors v₁, v₂ in pixels ((1, 0), (0, 1) in stochastic mode).
@@ -218,6 +223,26 @@ impl RsgfParams {
                 "cuts (join = cut): only a cut keeps the mirrored pixels out of the output",
             ));
         }
+        if self.wrap_edges && (self.v1, self.v2) != ((1, 0), (0, 1)) {
+            return Err(Error::param(
+                "wrap_edges",
+                format!(
+                    "on the lattice ({},{});({},{})",
+                    self.v1.0, self.v1.1, self.v2.0, self.v2.1
+                ),
+                "stochastic mode (v1 = (1, 0), v2 = (0, 1)): the torus's seams do not keep a lattice's period",
+            ));
+        }
+        if self.wrap_edges && self.feather_px >= self.border_px {
+            return Err(Error::param(
+                "feather",
+                self.feather_px,
+                format!(
+                    "0 to less than the border ({} px) with wrapped edges: the torus's seams ramp as block edges do",
+                    self.border_px
+                ),
+            ));
+        }
         if self.reflect_edges && self.wrap_edges {
             return Err(Error::param(
                 "edges",
@@ -236,8 +261,10 @@ impl RsgfParams {
         Ok(())
     }
 
-    /// Checks that a `w × h` exemplar holds a block of B pixels, and a patch of B + 2·o
-    /// pixels unless its edges are reflected ([`RsgfParams::reflect_edges`]).
+    /// Checks that a `w × h` exemplar holds a block of B pixels, a patch of B + 2·o
+    /// pixels unless its edges are reflected ([`RsgfParams::reflect_edges`]), and
+    /// B + 4·o where patches wrap ([`RsgfParams::wrap_edges`]: the torus, up to 2·o
+    /// smaller, holds a whole patch).
     pub fn check_exemplar(&self, w: usize, h: usize) -> Result<()> {
         let ext = self.block_px + 2 * self.border_px;
         if self.block_px > w.min(h) {
@@ -252,7 +279,7 @@ impl RsgfParams {
                 "block + 4 × border",
                 ext + 2 * self.border_px,
                 format!(
-                    "at most the exemplar's smaller side ({w}×{h}) with wrapped edges: the torus, 2 × border smaller than the exemplar, holds a whole patch"
+                    "at most the exemplar's smaller side ({w}×{h}) with wrapped edges: the torus, up to 2 × border smaller than the exemplar, holds a whole patch (or use --edges reflect)"
                 ),
             ));
         }

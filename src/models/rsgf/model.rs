@@ -97,6 +97,8 @@ pub struct RsgfModel {
     /// As `exact`, with empty residues replaced by their nearest non-empty ones.
     near: Lists,
     pub(crate) gap: GapTables,
+    /// The torus's side, where patches wrap.
+    torus: Option<(usize, usize)>,
 }
 
 impl RsgfModel {
@@ -121,6 +123,17 @@ impl RsgfModel {
                 "an RSGF exemplar of {w}×{h} pixels (at most 2^22, e.g. 2048²: the gap search keeps per-position tables and spectra of it)"
             )));
         }
+        let (bp, op) = (params.block_px, params.border_px);
+        if params.wrap_edges
+            && wrapped_side(w, bp, op) * wrapped_side(h, bp, op) > MAX_EXEMPLAR_PIXELS
+        {
+            return Err(Error::Limits(format!(
+                "an RSGF exemplar of {w}×{h} pixels wrapped with patches of {} px (the repeated torus, up to {}×{}, is searched like an exemplar: at most 2^22 pixels; use --edges reflect)",
+                bp + 2 * op,
+                wrapped_side(w, bp, op),
+                wrapped_side(h, bp, op)
+            )));
+        }
         if let Some(maps) = &params.histogram {
             check_histogram(maps, c)?;
         }
@@ -142,11 +155,13 @@ impl RsgfModel {
         // Positions index the extended exemplar; a position's residue is that of its
         // block's corner in the exemplar's own coordinates.
         let extended;
+        let mut torus_size = None;
         let (source, shift) = if pad {
             extended = reflect_pad(exemplar, params.border_px);
             (&extended, o)
         } else if params.wrap_edges {
             let torus = wrap_torus(exemplar, 2 * params.border_px, params.feather_px);
+            torus_size = Some((torus.width, torus.height));
             extended = wrap_extend(&torus, (b + 2 * o - 1) as usize);
             (&extended, 0)
         } else {
@@ -266,7 +281,14 @@ impl RsgfModel {
             exact,
             near,
             gap,
+            torus: torus_size,
         })
+    }
+
+    /// Width and height of the torus the patches wrap around
+    /// ([`RsgfParams::wrap_edges`]), or None.
+    pub fn torus(&self) -> Option<(usize, usize)> {
+        self.torus
     }
 
     /// Residue index of the integer point p.
@@ -922,8 +944,14 @@ fn seam_jump(ex: &Raster, period: usize, cut: &[usize]) -> f64 {
 
 /// One axis of [`wrap_torus`]: `ex` made periodic across x with the period whose seam
 /// jumps least ([`seam_jump`]): W (no cut), or W − ov for ov in (2·f, `max_ov`]
-/// through the minimum-error cut of that overlap (seed 003, eq. (1); closed along y
-/// when `closed`). Returns the torus's columns (all rows kept) and the chosen overlap.
+/// through the minimum-error cut of that overlap (seed 003, eq. (1)). With `closed`
+/// the chosen overlap's cut is then searched again as a closed path along y (it ends
+/// within one pixel of where it starts: the other axis already wraps), the cheapest of
+/// the paths pinned at each start; the choice itself uses open paths, so that it costs
+/// O(H · Σ m) rather than O(H · Σ m²). Returns the torus's columns (all rows kept) and
+/// the chosen overlap (0: no cut). A period one pixel longer than an exemplar's own
+/// repeats a column, which jumps not at all: on an exemplar that tiles exactly, the
+/// torus may be that one pixel longer.
 fn wrap_x(ex: &Raster, max_ov: usize, f: usize, closed: bool) -> (Raster, usize) {
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     let sq = |a: &[f32], b: &[f32]| -> f64 {
@@ -933,32 +961,37 @@ fn wrap_x(ex: &Raster, max_ov: usize, f: usize, closed: bool) -> (Raster, usize)
             .sum()
     };
     let px = |x: usize, y: usize| &ex.data[(y * w + x) * c..(y * w + x + 1) * c];
-    let mut best = (seam_jump(ex, w, &vec![0; h]), 0usize, vec![0usize; h]);
-    for ov in 2 * f + 1..=max_ov.min(w / 2) {
+    let errors = |ov: usize| -> Vec<f64> {
         let (tw, m) = (w - ov, ov - 2 * f);
-        let err: Vec<f64> = (0..h)
+        (0..h)
             .flat_map(|y| (0..m).map(move |k| (y, k)))
             .map(|(y, k)| sq(px(k + f, y), px(k + f + tw, y)))
-            .collect();
-        let pins: Vec<Option<usize>> = if closed {
-            (0..m).map(Some).collect()
-        } else {
-            vec![None]
-        };
+            .collect()
+    };
+    let shifted = |path: Vec<usize>| -> Vec<usize> { path.into_iter().map(|k| k + f).collect() };
+    let mut best = (seam_jump(ex, w, &vec![0; h]), 0usize, vec![0usize; h]);
+    for ov in 2 * f + 1..=max_ov.min(w / 2) {
+        let m = ov - 2 * f;
+        let err = errors(ov);
+        let cut = shifted(min_cut(h, m, None, |y, k| err[y * m + k]));
+        let jump = seam_jump(ex, w - ov, &cut);
+        if jump < best.0 {
+            best = (jump, ov, cut);
+        }
+    }
+    if closed && best.1 > 0 {
+        let (ov, m) = (best.1, best.1 - 2 * f);
+        let err = errors(ov);
         let mut cheapest: Option<(f64, Vec<usize>)> = None;
-        for pin in pins {
-            let path = min_cut(h, m, pin, |y, k| err[y * m + k]);
+        for pin in 0..m {
+            let path = min_cut(h, m, Some(pin), |y, k| err[y * m + k]);
             let cost: f64 = path.iter().enumerate().map(|(y, &k)| err[y * m + k]).sum();
             if cheapest.as_ref().is_none_or(|b| cost < b.0) {
                 cheapest = Some((cost, path));
             }
         }
-        let cut: Vec<usize> = cheapest
-            .map(|(_, p)| p.into_iter().map(|k| k + f).collect())
-            .unwrap_or_default();
-        let jump = seam_jump(ex, tw, &cut);
-        if jump < best.0 {
-            best = (jump, ov, cut);
+        if let Some((_, path)) = cheapest {
+            best.2 = shifted(path);
         }
     }
     let (_, ov, cut) = best;
@@ -1010,15 +1043,31 @@ fn transpose(r: &Raster) -> Raster {
 /// the columns (then rows) that its opposite edges share, as the roller cuts its tile
 /// (seed 003, eqs. (1) and (2), on the unit lattice) but without healing, so its
 /// pixels are the exemplar's except within `f` of a cut, where they ramp as a block
-/// edge does. Per axis the period is the one whose seam jumps least: the exemplar's
-/// side (an exemplar that already tiles, such as most GIMP patterns, needs no cut) or
-/// the side less ov for ov in (2·f, `max_ov`]. The second seam is closed (it ends
-/// beside where it starts), since the first axis already wraps. Both sides above
+/// edge does. Per axis the period is the one whose seam jumps least ([`wrap_x`]): the
+/// exemplar's side, uncut (an exemplar that nearly tiles, as GIMP patterns do, may need
+/// no cut), or the side less ov for ov in (2·f, `max_ov`]. The second seam is closed (it
+/// ends beside where it starts), since the first axis already wraps. Both sides above
 /// 2·`max_ov`.
 pub(crate) fn wrap_torus(ex: &Raster, max_ov: usize, f: usize) -> Raster {
     let (v1, _) = wrap_x(ex, max_ov, f, false);
     let (t, _) = wrap_x(&transpose(&v1), max_ov, f, true);
     transpose(&t)
+}
+
+/// Side of the repeated torus a wrapped model searches and samples, per exemplar side
+/// (at most W − 1 + B + 2·o): [`MAX_EXEMPLAR_PIXELS`] bounds it as it bounds the
+/// exemplar.
+pub fn wrapped_side(side: usize, block_px: usize, border_px: usize) -> usize {
+    side + block_px + 2 * border_px - 1
+}
+
+/// Whether a `w × h` exemplar can wrap patches of `block_px` + 2·`border_px`: its torus
+/// (up to 2·border smaller per axis) holds a whole patch, and the repeated torus stays
+/// within [`MAX_EXEMPLAR_PIXELS`].
+pub fn wrap_fits(w: usize, h: usize, block_px: usize, border_px: usize) -> bool {
+    block_px + 4 * border_px <= w.min(h)
+        && wrapped_side(w, block_px, border_px) * wrapped_side(h, block_px, border_px)
+            <= MAX_EXEMPLAR_PIXELS
 }
 
 /// The torus `t` repeated to `t.width + p` × `t.height + p` pixels, so that a patch of
