@@ -175,9 +175,17 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     surface.fill(&Region::new(0.0, 0.0, n, n), &mut data)?;
     let filled = fill_start.elapsed().as_secs_f64();
     let synth = Raster::from_vec(n, n, ex.channels, data)?;
+    // A wrapped RSGF bank says so, as the tables of docs/structure.md do.
+    let wrapped = method == Method::Rsgf
+        && surftile::models::rsgf::check_bank(&bank, "figures").is_ok_and(|p| p.wrap_edges);
+    let label = if wrapped {
+        format!("{} (wrapped)", args.method)
+    } else {
+        args.method.clone()
+    };
     report(
         &name,
-        &args.method,
+        &label,
         &ex,
         &synth,
         cells,

@@ -112,10 +112,10 @@ impl RsgfOptions {
             join: self.join,
             feather_px,
             histogram: None,
-            // A stochastic exemplar that holds a patch and the torus's overlap wraps;
-            // a smaller one hangs its patches over mirrored edges, which only cuts
-            // keep out of the output (a linear blend would show them across every
-            // overlap).
+            // A stochastic exemplar wraps where `edges` says so (auto: where bounded
+            // positions would miss its histogram and it can wrap); otherwise its
+            // patches hang over mirrored edges, which only cuts keep out of the
+            // output (a linear blend would show them across every overlap).
             reflect_edges: self.stochastic && self.join == Join::Cut && !wrap,
             wrap_edges: wrap,
             v1,
