@@ -509,7 +509,13 @@ pub(crate) fn bake(
             other => return Err(no_lattice(source, other, BAKE_WITHOUT_LATTICE)),
         }
     };
-    let params = options.params_for(ex, v1, v2);
+    // In stochastic mode the probe already is the bank's parameters (the same unit
+    // lattice): its block, ramp and edges need not be measured again.
+    let params = if options.stochastic {
+        probe
+    } else {
+        options.params_for(ex, v1, v2)
+    };
     // Building the model checks the lattice against the exemplar, as loading will.
     let model = RsgfModel::new(ex, &params)?;
     if options.stochastic {

@@ -536,13 +536,10 @@ impl RsgfModel {
             Edge::H => (fixed, e),
         };
         let along = (cross - (fixed * b - o)) as usize;
-        let d = k - i64::from(cut(edge, i, j, along));
-        let f = self.params.feather_px as i64;
-        let w = if f == 0 {
-            f32::from(u8::from(d >= 0))
-        } else {
-            ((d as f32 + 0.5) / (2 * f) as f32 + 0.5).clamp(0.0, 1.0)
-        };
+        let w = ramp(
+            k - i64::from(cut(edge, i, j, along)),
+            self.params.feather_px,
+        );
         if w == 0.0 {
             [(e - 1, 1.0), (e, 0.0)]
         } else if w == 1.0 {
@@ -912,12 +909,11 @@ pub(crate) fn reflect_pad(ex: &Raster, p: usize) -> Raster {
     }
 }
 
-/// Weight of the pixel after a cut at `kk` for a pixel at `x` across it, with a linear
-/// ramp over 2·`f` pixels around the cut (a hard cut for `f` = 0): as
-/// [`RsgfModel::split`] weighs the block after an edge.
+/// Weight of the side after a cut for a pixel `d` pixels past it (negative: before it),
+/// with a linear ramp over 2·`f` pixels around the cut (a hard cut for `f` = 0): how
+/// [`RsgfModel::split`] weighs the block after an edge, and the torus's seams ramp.
 #[inline]
-fn ramp(x: usize, kk: usize, f: usize) -> f32 {
-    let d = x as i64 - kk as i64;
+fn ramp(d: i64, f: usize) -> f32 {
     if f == 0 {
         f32::from(u8::from(d >= 0))
     } else {
@@ -948,11 +944,10 @@ fn seam_jump(ex: &Raster, period: usize, cut: &[usize]) -> f64 {
 /// the chosen overlap's cut is then searched again as a closed path along y (it ends
 /// within one pixel of where it starts: the other axis already wraps), the cheapest of
 /// the paths pinned at each start; the choice itself uses open paths, so that it costs
-/// O(H · Σ m) rather than O(H · Σ m²). Returns the torus's columns (all rows kept) and
-/// the chosen overlap (0: no cut). A period one pixel longer than an exemplar's own
+/// O(H · Σ m) rather than O(H · Σ m²). Returns the torus's columns (all rows kept). A period one pixel longer than an exemplar's own
 /// repeats a column, which jumps not at all: on an exemplar that tiles exactly, the
 /// torus may be that one pixel longer.
-fn wrap_x(ex: &Raster, max_ov: usize, f: usize, closed: bool) -> (Raster, usize) {
+fn wrap_x(ex: &Raster, max_ov: usize, f: usize, closed: bool) -> Raster {
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     let sq = |a: &[f32], b: &[f32]| -> f64 {
         a.iter()
@@ -1003,22 +998,19 @@ fn wrap_x(ex: &Raster, max_ov: usize, f: usize, closed: bool) -> (Raster, usize)
             if x >= ov {
                 data[at..at + c].copy_from_slice(px(x, y));
             } else {
-                let a = ramp(x, kk, f);
+                let a = ramp(x as i64 - kk as i64, f);
                 for ch in 0..c {
                     data[at + ch] = a * px(x, y)[ch] + (1.0 - a) * px(x + tw, y)[ch];
                 }
             }
         }
     }
-    (
-        Raster {
-            width: tw,
-            height: h,
-            channels: c,
-            data,
-        },
-        ov,
-    )
+    Raster {
+        width: tw,
+        height: h,
+        channels: c,
+        data,
+    }
 }
 
 /// `r` with x and y swapped.
@@ -1049,8 +1041,8 @@ fn transpose(r: &Raster) -> Raster {
 /// ends beside where it starts), since the first axis already wraps. Both sides above
 /// 2·`max_ov`.
 pub(crate) fn wrap_torus(ex: &Raster, max_ov: usize, f: usize) -> Raster {
-    let (v1, _) = wrap_x(ex, max_ov, f, false);
-    let (t, _) = wrap_x(&transpose(&v1), max_ov, f, true);
+    let v1 = wrap_x(ex, max_ov, f, false);
+    let t = wrap_x(&transpose(&v1), max_ov, f, true);
     transpose(&t)
 }
 
