@@ -390,3 +390,111 @@ fn bad_jpegs_are_one_line_errors() {
         assert!(e.contains(needle) && !e.contains('\n'), "{e}");
     }
 }
+
+/// JPEG structures no camera or editor writes are refused by the structure check before
+/// zune-jpeg decodes a byte (zune-jpeg 0.5.15 panics inside its IDCT on some of them;
+/// `fuzz/run jpeg` found one): each is a one-line error naming the file and the fault.
+/// Every real JPEG on hand still decodes: the three in `tests/data/jpeg/` here, the fuzz
+/// seeds in `fuzz_seeds_still_read`.
+#[test]
+fn odd_jpeg_structures_are_refused_before_decoding() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/jpeg");
+    let baseline = std::fs::read(data.join("mud-444.jpg")).unwrap();
+    let progressive = std::fs::read(data.join("mud-420-progressive.jpg")).unwrap();
+    let find = |bytes: &[u8], marker: u8| {
+        bytes
+            .windows(2)
+            .position(|m| m == [0xff, marker])
+            .expect("the marker")
+    };
+    let sof = find(&baseline, 0xc0);
+    // SOF: FF C0, length (2), precision, height (2), width (2), count, then per
+    // component id, sampling (H << 4 | V), table.
+    let mut twelve_bit = baseline.clone();
+    twelve_bit[sof + 4] = 12;
+    let mut three_by_one = baseline.clone();
+    three_by_one[sof + 10 + 3 + 1] = 0x31;
+    let mut chroma_above_luma = baseline.clone();
+    chroma_above_luma[sof + 10 + 3 + 1] = 0x22;
+    let mut arithmetic = baseline.clone();
+    arithmetic[sof + 1] = 0xc9;
+    // A second scan in a sequential image: its one scan again, before EOI.
+    let sos = find(&baseline, 0xda);
+    let end = baseline.len() - 2;
+    let two_scans = [&baseline[..end], &baseline[sos..end], &baseline[end..]].concat();
+    // A progressive image whose first scan claims to refine bits (Ah = Al + 1) that no
+    // earlier scan decoded.
+    let first_scan = find(&progressive, 0xda);
+    let ns = usize::from(progressive[first_scan + 4]);
+    let approx = first_scan + 4 + 1 + 2 * ns + 2;
+    let mut refine_first = progressive.clone();
+    let al = refine_first[approx] & 15;
+    refine_first[approx] = ((al + 1) << 4) | al;
+    let dir = tempfile::tempdir().unwrap();
+    for (name, bytes, needle) in [
+        ("twelve-bit.jpg", twelve_bit, "12-bit samples; expected 8"),
+        ("three-by-one.jpg", three_by_one, "samples 3 x 1"),
+        (
+            "chroma-above-luma.jpg",
+            chroma_above_luma,
+            "samples 2 x 2 against the first's 1 x 1",
+        ),
+        ("arithmetic.jpg", arithmetic, "0xFFC9"),
+        (
+            "two-scans.jpg",
+            two_scans,
+            "sequential image in more than one scan",
+        ),
+        (
+            "refine-first.jpg",
+            refine_first,
+            "refines bits out of order",
+        ),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let e = read_image(&path, &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(name) && e.contains(needle) && !e.contains('\n'),
+            "{name}: {e}"
+        );
+    }
+}
+
+/// The fuzz seeds (grey, 4:4:4, progressive 4:2:0, CMYK) pass the structure check and
+/// decode to their full size.
+#[test]
+fn fuzz_seeds_still_read() {
+    let seeds = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds/jpeg");
+    let mut read = 0;
+    for entry in std::fs::read_dir(seeds).unwrap() {
+        let path = entry.unwrap().path();
+        let image = read_image(&path, &ReadOptions::default())
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let r = &image.raster;
+        assert!(r.width > 0 && r.height > 0, "{}", path.display());
+        assert_eq!(r.data.len(), r.width * r.height * r.channels);
+        read += 1;
+    }
+    assert_eq!(read, 4);
+}
+
+/// A JPEG-compressed TIFF is refused in one line that names the compression and what is
+/// read instead (tiff is built without its JPEG codec; see Cargo.toml).
+#[test]
+fn jpeg_compressed_tiff_is_refused_with_the_reason() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bad/tiff-jpeg-compressed.tif");
+    let e = read_image(&path, &ReadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("tiff-jpeg-compressed.tif")
+            && e.contains("compression")
+            && e.contains("expected none, LZW, deflate or fax")
+            && !e.contains('\n'),
+        "{e}"
+    );
+}

@@ -13,7 +13,16 @@ use crate::error::{Error, Result};
 use crate::raster::Raster;
 
 pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
-    let bad = |e: tiff::TiffError| Error::decode(what, format!("not a readable TIFF ({e})"));
+    let bad = |e: tiff::TiffError| match e {
+        // Built without tiff's JPEG codec (see Cargo.toml): say why, and what is read.
+        tiff::TiffError::UnsupportedError(
+            tiff::TiffUnsupportedError::UnsupportedCompressionMethod(method),
+        ) => Error::Unsupported(format!(
+            "{what}: TIFF compression {method:?}; expected none, LZW, deflate or fax (lossy \
+             JPEG-in-TIFF is not read: save the photo as .jpg or .png)"
+        )),
+        e => Error::decode(what, format!("not a readable TIFF ({e})")),
+    };
     let mut dec = Decoder::new(Cursor::new(bytes)).map_err(bad)?;
     let (w, h) = dec.dimensions().map_err(bad)?;
     let channels = match dec.colortype().map_err(bad)? {
