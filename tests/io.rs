@@ -430,8 +430,18 @@ fn odd_jpeg_structures_are_refused_before_decoding() {
     let mut refine_first = progressive.clone();
     let al = refine_first[approx] & 15;
     refine_first[approx] = ((al + 1) << 4) | al;
+    // zune-jpeg 0.5.15 panics decoding this one (tests/data/README.md).
+    let idct_past_row = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bad/jpeg-idct-past-row.jpg"),
+    )
+    .unwrap();
     let dir = tempfile::tempdir().unwrap();
     for (name, bytes, needle) in [
+        (
+            "idct-past-row.jpg",
+            idct_past_row,
+            "component 3 samples 2 x 1 against the first's 1 x 1",
+        ),
         ("twelve-bit.jpg", twelve_bit, "12-bit samples; expected 8"),
         ("three-by-one.jpg", three_by_one, "samples 3 x 1"),
         (
