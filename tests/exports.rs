@@ -222,6 +222,9 @@ fn exr_error(bytes: &[u8], name: &str) -> String {
 /// one-line error naming the file:
 /// - a single-resolution tiled file whose tile chunk claims resolution level (0, 1), on
 ///   which the exr crate's debug assertion fired;
+/// - another whose tile at the offset table's offset claims level (0, 1), while the
+///   chunks in file order claim none (the check first read them in file order, and
+///   missed it; a CI fuzz run found it);
 /// - a 24 × 16 tiled file whose header claims tiles of 825194048 × 131585 pixels, on
 ///   which the exr crate took 1.6 GB sizing its buffers by the claimed tile before any
 ///   pixel was read (the fuzz run's 2 GiB limit stopped it).
@@ -229,6 +232,10 @@ fn exr_error(bytes: &[u8], name: &str) -> String {
 fn exr_fuzz_findings_are_refused() {
     for (seed, needle) in [
         ("tile-of-another-level.exr", "resolution level (0, 1)"),
+        (
+            "tile-level-at-the-table-offset.exr",
+            "resolution level (0, 1)",
+        ),
         ("tile-larger-than-the-image.exr", "825194048×131585"),
     ] {
         let bytes = std::fs::read(common::repo(&format!("fuzz/seeds/exr/{seed}"))).unwrap();

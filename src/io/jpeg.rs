@@ -8,9 +8,10 @@
 //! cameras and image editors do not write: odd sampling factors, a sequential image in
 //! more than one scan, progressive scans out of order, precisions other than 8 bits,
 //! DNL, arithmetic, lossless and hierarchical coding. zune-jpeg 0.5.15, the newest
-//! release, still panics on some such files (its IDCT writes past a block row; found by
-//! `fuzz/run jpeg`, and reported upstream as zune-image issues 361, 362 and 409). A photo
-//! a real encoder wrote passes the check unchanged.
+//! release, still panics on some such files: its IDCT writes past a block row
+//! (`fuzz/run jpeg` found one in CI; `tests/data/bad/jpeg-idct-past-row.jpg` is another).
+//! Panics of the same kind are open upstream (zune-image issues 361, 362 and 409). A
+//! photo a real encoder wrote passes the check unchanged.
 
 use zune_jpeg::JpegDecoder;
 use zune_jpeg::zune_core::bytestream::ZCursor;
@@ -124,7 +125,7 @@ pub(super) fn check_structure(bytes: &[u8]) -> std::result::Result<(), String> {
                 };
             }
             0xd0..=0xd7 => return Err(format!("a restart marker outside a scan at byte {at}")),
-            0x00 | 0x01 | 0x02..=0xbf | 0xf0..=0xfd | 0xd8 => {
+            0x00..=0xbf | 0xd8 | 0xf0..=0xfd => {
                 return Err(format!(
                     "marker 0xFF{code:02X} at byte {} is not one of baseline or progressive JPEG's",
                     at - 2
@@ -184,7 +185,8 @@ pub(super) fn check_structure(bytes: &[u8]) -> std::result::Result<(), String> {
                     }
                 }
             }
-            // APPn, COM, DRI, EXP-less extensions: skipped.
+            // APPn, COM and a 4-byte DRI: nothing to check. (DHP and EXP belong to
+            // hierarchical frames, refused at their frame header.)
             _ => {}
         }
     }
