@@ -68,14 +68,6 @@ pub(super) fn read(bytes: &[u8], what: &str) -> Result<ImageFile> {
     ))
 }
 
-/// Reads a big-endian u16 at `at`, or says the file ends there.
-fn be16(bytes: &[u8], at: usize) -> std::result::Result<usize, String> {
-    match bytes.get(at..at + 2) {
-        Some(b) => Ok(usize::from(u16::from_be_bytes([b[0], b[1]]))),
-        None => Err(format!("it ends inside a marker segment at byte {at}")),
-    }
-}
-
 /// One frame component: id, sampling factors, quantisation table.
 struct FrameComponent {
     id: u8,
@@ -133,7 +125,12 @@ pub(super) fn check_structure(bytes: &[u8]) -> std::result::Result<(), String> {
             }
             _ => {}
         }
-        let len = be16(bytes, at)?;
+        let Some(&[hi, lo]) = bytes.get(at..at + 2) else {
+            return Err(format!(
+                "it ends inside marker 0xFF{code:02X}'s length at byte {at}"
+            ));
+        };
+        let len = usize::from(u16::from_be_bytes([hi, lo]));
         if len < 2 || at + len > bytes.len() {
             return Err(format!(
                 "marker 0xFF{code:02X} at byte {} has length {len}, and {} bytes follow it",
@@ -148,9 +145,9 @@ pub(super) fn check_structure(bytes: &[u8]) -> std::result::Result<(), String> {
                 if frame.is_some() {
                     return Err("a second frame header".into());
                 }
-                frame = Some((code, check_frame(seg)?));
-                let n = frame.as_ref().map_or(0, |f| f.1.len());
-                decoded = vec![[u8::MAX; 64]; n];
+                let comps = check_frame(seg)?;
+                decoded = vec![[u8::MAX; 64]; comps.len()];
+                frame = Some((code, comps));
             }
             0xc3 | 0xc5..=0xc7 | 0xc9..=0xcb | 0xcd..=0xcf => {
                 return Err(format!(
@@ -196,13 +193,13 @@ pub(super) fn check_structure(bytes: &[u8]) -> std::result::Result<(), String> {
 /// sampling factors 1 or 2 where every component samples either 1 × 1 or as the first
 /// (4:4:4, 4:2:2, 4:2:0, 4:4:0; CMYK and YCCK alike), a single component 1 × 1.
 fn check_frame(seg: &[u8]) -> std::result::Result<Vec<FrameComponent>, String> {
-    let (Some(&precision), Some(&n)) = (seg.first(), seg.get(5)) else {
+    let &[precision, h1, h0, w1, w0, n, ..] = seg else {
         return Err("a frame header shorter than 6 bytes".into());
     };
     if precision != 8 {
         return Err(format!("{precision}-bit samples; expected 8"));
     }
-    let (height, width) = (be16(seg, 1)?, be16(seg, 3)?);
+    let (height, width) = (u16::from_be_bytes([h1, h0]), u16::from_be_bytes([w1, w0]));
     if height == 0 || width == 0 {
         return Err(format!(
             "frame size {width} x {height}; expected both sides above 0"
@@ -317,6 +314,8 @@ fn check_scan(
         seg[3 + 2 * ns] >> 4,
         seg[3 + 2 * ns] & 15,
     );
+    // A first DC scan decodes DC differences; every scan past coefficient 0 decodes AC.
+    let (needs_dc, needs_ac) = (ss == 0 && ah == 0, se > 0);
     let mut members = Vec::with_capacity(ns);
     for pair in seg[1..1 + 2 * ns].chunks_exact(2) {
         let Some(k) = comps.iter().position(|c| c.id == pair[0]) else {
@@ -329,8 +328,6 @@ fn check_scan(
             return Err("a scan's components are repeated or out of frame order".into());
         }
         let (td, ta) = (usize::from(pair[1] >> 4), usize::from(pair[1] & 15));
-        let needs_dc = ss == 0 && ah == 0;
-        let needs_ac = se > 0;
         if td > 3 || ta > 3 || (needs_dc && !huff[0][td]) || (needs_ac && !huff[1][ta]) {
             return Err(format!(
                 "a scan uses Huffman tables DC {td} / AC {ta} before they are defined"
@@ -361,13 +358,14 @@ fn check_scan(
             "a progressive scan of band {ss}-{se}, bits {ah}/{al}; expected DC alone or one component's AC band, refined one bit at a time"
         ));
     }
+    // A first scan finds its band undecoded; a refinement finds it decoded down to Ah.
+    let want = if ah == 0 { u8::MAX } else { ah };
     for &k in &members {
         let state = &mut decoded[k];
         if ss > 0 && state[0] == u8::MAX {
             return Err("a progressive AC scan before its component's DC scan".into());
         }
         for coefficient in &mut state[usize::from(ss)..=usize::from(se)] {
-            let want = if ah == 0 { u8::MAX } else { ah };
             if *coefficient != want {
                 return Err(format!("progressive scan {scan} refines bits out of order"));
             }

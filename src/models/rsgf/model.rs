@@ -944,9 +944,9 @@ fn seam_jump(ex: &Raster, period: usize, cut: &[usize]) -> f64 {
 /// the chosen overlap's cut is then searched again as a closed path along y (it ends
 /// within one pixel of where it starts: the other axis already wraps), the cheapest of
 /// the paths pinned at each start; the choice itself uses open paths, so that it costs
-/// O(H · Σ m) rather than O(H · Σ m²). Returns the torus's columns (all rows kept). A period one pixel longer than an exemplar's own
-/// repeats a column, which jumps not at all: on an exemplar that tiles exactly, the
-/// torus may be that one pixel longer.
+/// O(H · Σ m) rather than O(H · Σ m²). Returns the torus's columns (all rows kept).
+/// A period one pixel longer than an exemplar's own repeats a column, which jumps not
+/// at all: on an exemplar that tiles exactly, the torus may be that one pixel longer.
 fn wrap_x(ex: &Raster, max_ov: usize, f: usize, closed: bool) -> Raster {
     let (w, h, c) = (ex.width, ex.height, ex.channels);
     let sq = |a: &[f32], b: &[f32]| -> f64 {
