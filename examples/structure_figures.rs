@@ -21,7 +21,7 @@ use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
 use surftile::kinds::open;
-use surftile::models::rsgf::Edges;
+use surftile::models::rsgf::{Edges, Metric};
 use surftile::models::synth::SynthParams;
 use surftile::prep::level::level_plane;
 use surftile::raster::Raster;
@@ -53,6 +53,9 @@ struct Args {
     /// RSGF: how patches meet the exemplar's edges: auto, reflect or wrap.
     #[arg(long, default_value = "auto")]
     edges: String,
+    /// RSGF: the gap border's measure, ssd or ncc (empty: the default).
+    #[arg(long, default_value = "")]
+    metric: String,
     /// Skip texture-synthesis (slow).
     #[arg(long)]
     no_embark: bool,
@@ -133,6 +136,12 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             other => {
                 return Err(format!("--edges {other}: expected auto, reflect or wrap").into());
             }
+        },
+        metric: match args.metric.as_str() {
+            "" => None,
+            "ssd" => Some(Metric::Ssd),
+            "ncc" => Some(Metric::Ncc),
+            other => return Err(format!("--metric {other}: expected ssd or ncc").into()),
         },
         ..RsgfOptions::default()
     };
