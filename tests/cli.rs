@@ -393,6 +393,20 @@ fn bake_info_render_sample_and_stats_work_together() {
         assert!(stats[key].as_f64().is_some(), "{key} missing in {stats}");
     }
     assert!(stats["a"]["sal"].as_f64().unwrap() > 0.0);
+    // The seam search at any offset comes with its floor on the output's own content,
+    // measured on the same figure.
+    let (seams, floor) = (
+        &stats["structure"]["seams"],
+        &stats["structure"]["seam_noise"],
+    );
+    let (worst, observed) = (seams["worst"].as_f64(), floor["observed"].as_f64());
+    assert!(
+        matches!((worst, observed), (Some(a), Some(b)) if (a / b - 1.0).abs() < 1e-9),
+        "{stats}"
+    );
+    for key in ["median", "in_bar", "p_value"] {
+        assert!(floor[key].as_f64().is_some(), "{key} missing in {floor}");
+    }
 
     // Inputs the figures cannot be measured on: one clear line each, no JSON.
     let raster = |w: usize, h: usize, f: fn(usize) -> f32| {

@@ -12,7 +12,7 @@ use crate::raster::Raster;
 
 pub mod structure;
 
-pub use structure::{PhaseSeams, StructureFigures, seam_any_phase};
+pub use structure::{PhaseSeams, SeamNoise, StructureFigures, seam_any_phase, seam_noise};
 
 /// The ACF threshold of ISO 25178's Sal and Str.
 const ACF_THRESHOLD: f64 = 0.2;

@@ -60,7 +60,15 @@ pub struct StructureFigures {
     pub copy_score: f64,
     /// Seams searched at every phase of a cell, if the output is large enough.
     pub seams: Option<PhaseSeams>,
+    /// What the seam figure reads on the output's own content with no grid behind it
+    /// ([`seam_noise`] at the same cell, [`SEAM_NOISE_DRAWS`] draws, bar [`SEAM_BAR`]).
+    pub seam_noise: Option<SeamNoise>,
 }
+
+/// The band the seam score at any phase should fall in (docs/structure.md).
+pub const SEAM_BAR: (f64, f64) = (0.9, 1.15);
+/// Draws of [`seam_noise`] in [`structure`].
+pub const SEAM_NOISE_DRAWS: usize = 400;
 
 /// Seams searched at every offset modulo a cell ([`seam_any_phase`]).
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -94,6 +102,8 @@ pub fn structure(exemplar: &Raster, output: &Raster, cell: Option<usize>) -> Str
         copy_score,
         seams: (output.width >= 2 * cell && output.height >= 2 * cell && cell >= 2)
             .then(|| seam_any_phase(output, cell)),
+        seam_noise: (output.width >= 2 * cell && output.height >= 2 * cell && cell >= 2)
+            .then(|| seam_noise(output, &[cell], SEAM_NOISE_DRAWS, 1, SEAM_BAR)),
     }
 }
 
@@ -493,6 +503,127 @@ pub fn seam_any_phase(r: &Raster, cell: usize) -> PhaseSeams {
     best
 }
 
+/// Gradient energy across each pair of neighbouring columns (x, x + 1), summed over
+/// rows and channels, and across each pair of neighbouring rows: the lines whose means
+/// per offset [`seam_any_phase`] compares.
+fn line_energies(r: &Raster) -> [Vec<f64>; 2] {
+    let c = r.channels;
+    let mut cols = vec![0.0f64; r.width.saturating_sub(1)];
+    let mut rows = vec![0.0f64; r.height.saturating_sub(1)];
+    for y in 0..r.height {
+        for x in 0..r.width {
+            let here = (y * r.width + x) * c;
+            let diff = |next: usize| -> f64 {
+                (0..c)
+                    .map(|k| (r.data[next + k] as f64 - r.data[here + k] as f64).powi(2))
+                    .sum()
+            };
+            if x + 1 < r.width {
+                cols[x] += diff(here + c);
+            }
+            if y + 1 < r.height {
+                rows[y] += diff(here + r.width * c);
+            }
+        }
+    }
+    [cols, rows]
+}
+
+/// The worst ratio of [`seam_any_phase`] over both axes and every cell of `cells`,
+/// from line energies (each line holds the same number of pixel pairs).
+fn worst_phase(lines: [&[f64]; 2], cells: &[usize]) -> f64 {
+    let mut worst = 1.0f64;
+    for &cell in cells {
+        let cell = cell.max(2);
+        for line in lines {
+            let means: Vec<f64> = (0..cell)
+                .map(|o| {
+                    let (sum, n) = line
+                        .iter()
+                        .skip(o)
+                        .step_by(cell)
+                        .fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+                    sum / n.max(1) as f64
+                })
+                .collect();
+            let mut sorted = means.clone();
+            sorted.sort_by(f64::total_cmp);
+            let median = if cell % 2 == 1 {
+                sorted[cell / 2]
+            } else {
+                0.5 * (sorted[cell / 2 - 1] + sorted[cell / 2])
+            };
+            for m in means {
+                let ratio = if median > 0.0 { m / median } else { 1.0 };
+                if ratio.ln().abs() > worst.ln().abs() {
+                    worst = ratio;
+                }
+            }
+        }
+    }
+    worst
+}
+
+/// What the seam score at any phase reads on an output's own content with no grid
+/// behind it ([`seam_noise`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct SeamNoise {
+    /// The worst ratio over `cells` as the output reads it.
+    pub observed: f64,
+    /// Median of the worst ratio over the draws.
+    pub median: f64,
+    /// Share of the draws whose worst ratio lies within the bar.
+    pub in_bar: f64,
+    /// Share of the draws at least as far from 1 (in log terms) as the observed ratio:
+    /// small where a grid lines up with some offset.
+    pub p_value: f64,
+    /// Draws.
+    pub draws: usize,
+}
+
+/// The seam score's noise floor: the worst ratio of [`seam_any_phase`] over `cells`
+/// when the output's column and row gradient energies ([`line_energies`]) are put in a
+/// random order, `draws` times (seeded), so that no grid lines up with any offset.
+/// Strong, sparse edges (cracks, mortar) make a few lines carry much of the energy, and
+/// the means per offset then swing however the texture was made: where the draws fall
+/// outside `bar` (lo, hi) most of the time, a texture without any grid would miss it
+/// as often. A permutation test of the offset means; a figure that reads far outside
+/// its draws shows a grid.
+pub fn seam_noise(
+    r: &Raster,
+    cells: &[usize],
+    draws: usize,
+    seed: u64,
+    (lo, hi): (f64, f64),
+) -> SeamNoise {
+    use rand::SeedableRng;
+    use rand::seq::SliceRandom;
+    let [mut cols, mut rows] = line_energies(r);
+    let observed = worst_phase([&cols, &rows], cells);
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut worst: Vec<f64> = (0..draws)
+        .map(|_| {
+            cols.shuffle(&mut rng);
+            rows.shuffle(&mut rng);
+            worst_phase([&cols, &rows], cells)
+        })
+        .collect();
+    let share = |keep: &dyn Fn(f64) -> bool| {
+        worst.iter().filter(|&&w| keep(w)).count() as f64 / draws.max(1) as f64
+    };
+    let in_bar = share(&|w| (lo..=hi).contains(&w));
+    let p_value = share(&|w| w.ln().abs() >= observed.ln().abs());
+    worst.sort_by(f64::total_cmp);
+    let median = worst.get(worst.len() / 2).copied().unwrap_or(f64::NAN);
+    SeamNoise {
+        observed,
+        median,
+        in_bar,
+        p_value,
+        draws,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -508,6 +639,44 @@ mod tests {
             })
             .collect();
         Raster::from_vec(w, h, c, data).unwrap()
+    }
+
+    /// The line energies give [`seam_any_phase`]'s own worst ratio (the slow twin: the
+    /// pixel loop over offsets), and the noise floor sees a planted grid far outside its
+    /// draws while white noise stays within the bar.
+    #[test]
+    fn seam_noise_reads_the_figure_and_its_floor() {
+        let mut r = noise(512, 384, 1, 9);
+        for cell in [7, 32, 40] {
+            let [cols, rows] = line_energies(&r);
+            let fast = worst_phase([&cols, &rows], &[cell]);
+            let slow = seam_any_phase(&r, cell).worst;
+            assert!(
+                (fast / slow - 1.0).abs() < 1e-9,
+                "cell {cell}: {fast} vs {slow}"
+            );
+        }
+        let white = seam_noise(&r, &[32, 40], 200, 3, (0.9, 1.15));
+        assert!(white.in_bar > 0.95, "white noise: {white:?}");
+        // A faint ridge every 20 columns: its two columns of pairs carry 1.24 times the
+        // energy of the others (uniform noise: 1/6 per pair, 1/6 + 0.04 beside a
+        // ridge). At their offsets the figure reads outside the bar; the same column
+        // energies in a random order do not.
+        for y in 0..r.height {
+            for x in (0..r.width).filter(|x| x % 20 == 0) {
+                r.data[y * r.width + x] += 0.2;
+            }
+        }
+        let grid = seam_noise(&r, &[40], 200, 3, (0.9, 1.15));
+        assert!(grid.observed > 1.18, "{grid:?}");
+        assert!(grid.median < 1.12 && grid.in_bar > 0.9, "{grid:?}");
+        assert!(
+            grid.p_value < 0.01 && white.p_value > 0.01,
+            "{grid:?} {white:?}"
+        );
+        // Seeded: the same draws twice.
+        let again = seam_noise(&r, &[40], 200, 3, (0.9, 1.15));
+        assert_eq!(again.median.to_bits(), grid.median.to_bits());
     }
 
     /// A smooth, structured test image: sums of a few sines, plus a little noise.
