@@ -507,25 +507,24 @@ pub fn seam_any_phase(r: &Raster, cell: usize) -> PhaseSeams {
 /// rows and channels, and across each pair of neighbouring rows: the lines whose means
 /// per offset [`seam_any_phase`] compares.
 fn line_energies(r: &Raster) -> [Vec<f64>; 2] {
-    let c = r.channels;
-    let mut cols = vec![0.0f64; r.width.saturating_sub(1)];
-    let mut rows = vec![0.0f64; r.height.saturating_sub(1)];
-    for y in 0..r.height {
-        for x in 0..r.width {
-            let here = (y * r.width + x) * c;
-            let diff = |next: usize| -> f64 {
-                (0..c)
-                    .map(|k| (r.data[next + k] as f64 - r.data[here + k] as f64).powi(2))
-                    .sum()
-            };
-            if x + 1 < r.width {
-                cols[x] += diff(here + c);
-            }
-            if y + 1 < r.height {
-                rows[y] += diff(here + r.width * c);
-            }
+    let (w, c) = (r.width, r.channels);
+    if w * c == 0 {
+        return [Vec::new(), Vec::new()];
+    }
+    let sq = |a: &[f32], b: &[f32]| -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(&p, &q)| (q as f64 - p as f64).powi(2))
+            .sum()
+    };
+    let lines: Vec<&[f32]> = r.data.chunks_exact(w * c).collect();
+    let mut cols = vec![0.0f64; w.saturating_sub(1)];
+    for line in &lines {
+        for (x, e) in cols.iter_mut().enumerate() {
+            *e += sq(&line[x * c..(x + 1) * c], &line[(x + 1) * c..(x + 2) * c]);
         }
     }
+    let rows = lines.windows(2).map(|p| sq(p[0], p[1])).collect();
     [cols, rows]
 }
 
