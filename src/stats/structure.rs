@@ -482,15 +482,7 @@ pub fn seam_any_phase(r: &Raster, cell: usize) -> PhaseSeams {
             .zip(&count[axis])
             .map(|(e, &n)| e / n.max(1) as f64)
             .collect();
-        let mut sorted = means.clone();
-        sorted.sort_by(f64::total_cmp);
-        let median = if cell % 2 == 1 {
-            sorted[cell / 2]
-        } else {
-            0.5 * (sorted[cell / 2 - 1] + sorted[cell / 2])
-        };
-        for (o, m) in means.iter().enumerate() {
-            let ratio = if median > 0.0 { m / median } else { 1.0 };
+        for (o, ratio) in over_median(&means).into_iter().enumerate() {
             best.max = best.max.max(ratio);
             best.min = best.min.min(ratio);
             if ratio.ln().abs() > best.worst.ln().abs() {
@@ -501,6 +493,22 @@ pub fn seam_any_phase(r: &Raster, cell: usize) -> PhaseSeams {
         }
     }
     best
+}
+
+/// Each offset's mean over the median of the offsets' means (1 where the median is 0).
+fn over_median(means: &[f64]) -> Vec<f64> {
+    let mut sorted = means.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let n = sorted.len();
+    let median = if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    };
+    means
+        .iter()
+        .map(|m| if median > 0.0 { m / median } else { 1.0 })
+        .collect()
 }
 
 /// Gradient energy across each pair of neighbouring columns (x, x + 1), summed over
@@ -545,15 +553,7 @@ fn worst_phase(lines: [&[f64]; 2], cells: &[usize]) -> f64 {
                     sum / n.max(1) as f64
                 })
                 .collect();
-            let mut sorted = means.clone();
-            sorted.sort_by(f64::total_cmp);
-            let median = if cell % 2 == 1 {
-                sorted[cell / 2]
-            } else {
-                0.5 * (sorted[cell / 2 - 1] + sorted[cell / 2])
-            };
-            for m in means {
-                let ratio = if median > 0.0 { m / median } else { 1.0 };
+            for ratio in over_median(&means) {
                 if ratio.ln().abs() > worst.ln().abs() {
                     worst = ratio;
                 }
