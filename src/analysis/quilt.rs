@@ -148,7 +148,6 @@ pub struct WangTiles {
 /// held fixed: a tile's m px along its edges (so tiles still meet exactly), a strip's
 /// pure vertex rows and outer columns. Every free region must touch a fixed texel, and
 /// no free texel may lie on the image's border (the solve's lattice is a torus).
-#[allow(clippy::too_many_arguments)]
 fn heal_seams<'a>(
     img: &mut [f32],
     (w, h, c): (usize, usize, usize),
