@@ -7,7 +7,7 @@ use surftile::bank::Method;
 use surftile::io::{ImageFile, ReadOptions, read_image};
 use surftile::prep::level::level_plane;
 use surftile::sandblast::{Route, Sandblast};
-use surftile::stats::{Acf, height_stats, psd_error, seam_score_by};
+use surftile::stats::{Acf, height_stats, psd_error, seam_any_phase, seam_score_by};
 use surftile::stream::{Region, Surface, ToroidalSurface};
 
 fn data(rel: &str) -> std::path::PathBuf {
@@ -163,6 +163,33 @@ fn a_wang_render_seam_score(bake_seed: u64) {
     let score = seam_score_by(&r, |x, y| surface.cell_id(region.x_at(x), region.y_at(y)));
     println!("bake seed {bake_seed}: Wang seam score {score:.4}");
     assert!((0.9..=1.15).contains(&score), "seam score {score}");
+}
+
+/// Issue 31: a Wang bank of di-6 shows no seam at any phase of its 256 px cells, not only
+/// on the cell borders. A 4096² render at (−123456, 98765): every offset's mean squared
+/// step, across columns and across rows, within [0.9, 1.15] of the median over the
+/// offsets (`seam_any_phase`). Before the bake evened out its lines, tile rows 247–248
+/// read 0.60 (docs/structure.md, "Quilt on di-6").
+#[test]
+fn a_wang_render_has_no_seam_at_any_phase() {
+    let di6 = read_image(&data("tiles/di-6.npy"), &ReadOptions::default()).unwrap();
+    let bank = Baker::builder()
+        .method(Method::Quilt)
+        .build()
+        .unwrap()
+        .bake(&di6, "di-6", &mut |_| {})
+        .unwrap();
+    let surface = ToroidalSurface::new(&bank, 0).unwrap();
+    let side = 4096;
+    let region = Region::new(-123_456.0, 98_765.0, side, side);
+    let mut buf = vec![0.0f32; side * side];
+    surface.fill(&region, &mut buf).unwrap();
+    let seams = seam_any_phase(&Raster::from_vec(side, side, 1, buf).unwrap(), 256);
+    println!("Wang seams at any phase: {seams:?}");
+    assert!(
+        (0.9..=1.15).contains(&seams.min) && (0.9..=1.15).contains(&seams.max),
+        "{seams:?}"
+    );
 }
 
 /// Bad input (issue 7), each with a clear one-line error naming what is wrong.
