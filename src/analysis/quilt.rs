@@ -37,7 +37,8 @@ use crate::analysis::cut::min_cut_vertical;
 use crate::error::{Error, Result};
 use crate::raster::Raster;
 
-/// Random crops tried for each edge strip (the most typical is kept).
+/// Random crops tried per edge strip: the K strips of a direction are chosen together
+/// from K times as many.
 const STRIP_CANDIDATES: usize = 64;
 
 /// Random crops tried for each tile's interior.
@@ -145,8 +146,9 @@ pub struct WangTiles {
 /// labels, the target gradient is one side's own continuation (its image's gradient
 /// there; the sides alternating from pixel to pixel, as `heal` does), and the
 /// least-squares correction that gives it is solved on the `free` texels with the others
-/// held fixed: a tile's m px along its edges (so tiles still meet exactly), a strip's
-/// pure vertex rows and outer columns. Every free region must touch a fixed texel, and
+/// held fixed: a tile's m px along its edges (so tiles still meet exactly); in a strip,
+/// everything outside the two bands its vertex cuts lie in. Every free region must touch
+/// a fixed texel, and
 /// no free texel may lie on the image's border (the solve's lattice is a torus).
 fn heal_seams<'a>(
     img: &mut [f32],
@@ -213,17 +215,19 @@ const EVEN_ROUNDS: usize = 3;
 /// Evens out the steps of every line of a piece that many tiles share, in place: for
 /// each line between neighbouring columns (rows) of the `w × h × c` image, the mean
 /// squared step across it over the links that touch a `free` texel is brought towards
-/// `target.0` (`target.1`) by scaling those steps by √(target / mean), at most 2× either
-/// way, and solving for the image whose steps are closest to the scaled ones in least
-/// squares, the texels that are not free held fixed (a masked Poisson solve, as
-/// [`heal_seams`]; the same rules on `free` apply). A vertex patch is in every tile and
+/// `target.0` (`target.1`; 0 leaves that direction as it is) by scaling those steps by
+/// √(target / mean), at most 2× either way in one round, and solving for the image whose
+/// steps are closest to the scaled ones in least squares, the texels that are not free
+/// held fixed (a masked Poisson solve, as [`heal_seams`]; the same rules on `free`
+/// apply). Rounds repeat up to [`EVEN_ROUNDS`] times, so a line's steps can change by
+/// more than 2× in all. A vertex patch is in every tile and
 /// a strip in 1/K of them, always at the same offsets, so any line of theirs that is
 /// rougher or smoother than typical shows in the render at that offset of every cell,
 /// whatever is chosen around it: on di-6 (256 px tiles, K = 4), the vertex patch's rows
 /// read 2.3–2.4× the median step in the tiles' W and E bands at tile row 3, and the
 /// strips that best made up for it along the whole row left 0.62–0.89 in the cell's
-/// middle, 0.72 over all four. Steps are changed by at most the factor a line needs, and
-/// the content (which pixel is higher than which) stays.
+/// middle, 0.72 over all four. The solve is a least-squares compromise between
+/// neighbouring lines' gains, so no single step is guaranteed its line's factor.
 fn even_lines(
     img: &mut [f32],
     dims: (usize, usize, usize),
@@ -579,15 +583,15 @@ pub fn wang_tiles(
                 let devs = (0..lines).map(|j| ((sum[j] + r[j]) / (k + 1) as f64).ln().abs());
                 devs.fold((0.0f64, 0.0), |(mx, s), d| (mx.max(d), s + d))
             };
-            let mut pick_i = None;
-            let mut best = (f64::INFINITY, f64::INFINITY);
-            for (i, (_, r)) in pool.iter().enumerate() {
-                let sc = score(r);
-                if !taken[i] && sc.partial_cmp(&best) == Some(std::cmp::Ordering::Less) {
-                    (best, pick_i) = (sc, Some(i));
-                }
-            }
-            let Some(i) = pick_i else {
+            // Ordered by total_cmp, so a score that overflows or is NaN (a flat strip
+            // line against a huge target) still ranks, last.
+            let Some((i, _)) = pool
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !taken[*i])
+                .map(|(i, (_, r))| (i, score(r)))
+                .min_by(|(_, a), (_, b)| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)))
+            else {
                 unreachable!("the pool holds K · STRIP_CANDIDATES > K crops")
             };
             taken[i] = true;
@@ -595,9 +599,10 @@ pub fn wang_tiles(
             let mut img = crop(pool[i].0)?;
             let (a, b) = cut_vertex_into(&mut img, v, &lay, c, true)?;
             // Its lines evened out too ([`even_lines`]), the pure vertex rows at its ends
-            // and its outer columns held fixed: the lines across the edge over the whole
-            // strip, then the lines along it over the 2m columns that tiles keep unchanged
-            // (the rest of a tile is evened with the tile set, below).
+            // and its outer columns held fixed: the lines across the edge over the strip's
+            // length between the pure vertex rows (tile rows m to T − m), then the lines
+            // along it over the 2m columns that tiles keep unchanged (the rest of a tile
+            // is evened with the tile set, below).
             let free: Vec<bool> = (0..sw * (t + sw))
                 .map(|q| {
                     let (x, y) = (q % sw, q / sw);
