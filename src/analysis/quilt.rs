@@ -161,51 +161,87 @@ fn heal_seams<'a>(
     for k in 0..c {
         let mut b = vec![0.0f64; w * h];
         let mut any = false;
-        for y in 0..h {
-            for x in 0..w {
-                let q = y * w + x;
-                for (nx, ny) in [(x + 1, y), (x, y + 1)] {
-                    if nx >= w || ny >= h {
-                        continue;
-                    }
-                    let n = ny * w + nx;
-                    let (lq, ln) = (labels[q], labels[n]);
-                    if lq == ln || !(free[q] || free[n]) {
-                        continue;
-                    }
-                    let step = |l: u8| match (source(l, x, y), source(l, nx, ny)) {
-                        (Some(a), Some(b)) => Some(b[k] as f64 - a[k] as f64),
-                        _ => None,
-                    };
-                    let target = match (step(lq), step(ln)) {
-                        (Some(a), Some(b)) => {
-                            if q.is_multiple_of(2) {
-                                a
-                            } else {
-                                b
-                            }
-                        }
-                        (Some(a), None) => a,
-                        (None, Some(b)) => b,
-                        (None, None) => continue,
-                    };
-                    let r = target - (img[n * c + k] as f64 - img[q * c + k] as f64);
-                    b[n] += r;
-                    b[q] -= r;
-                    any = true;
-                }
+        for Link { q, n, at, next, .. } in free_links(w, h, free) {
+            let (lq, ln) = (labels[q], labels[n]);
+            if lq == ln {
+                continue;
             }
+            let step = |l: u8| match (source(l, at.0, at.1), source(l, next.0, next.1)) {
+                (Some(a), Some(b)) => Some(b[k] as f64 - a[k] as f64),
+                _ => None,
+            };
+            let target = match (step(lq), step(ln)) {
+                (Some(a), Some(b)) => {
+                    if q.is_multiple_of(2) {
+                        a
+                    } else {
+                        b
+                    }
+                }
+                (Some(a), None) => a,
+                (None, Some(b)) => b,
+                (None, None) => continue,
+            };
+            let r = target - (img[n * c + k] as f64 - img[q * c + k] as f64);
+            b[n] += r;
+            b[q] -= r;
+            any = true;
         }
         if any {
-            let correction = crate::analysis::heal::solve_masked(&lattice, free, &b);
-            for (q, &v) in correction.iter().enumerate() {
-                if free[q] {
-                    img[q * c + k] = (img[q * c + k] as f64 + v) as f32;
-                }
-            }
+            add_correction(img, (c, k), &lattice, free, &b);
         }
     }
     Ok(())
+}
+
+/// A link between 4-neighbours q (at `at`) and n (at `next`, one step right or down) of
+/// a `w × h` image; `axis` 0 for a step across columns, 1 across rows, and `line` the
+/// column (row) it leaves.
+struct Link {
+    q: usize,
+    n: usize,
+    at: (usize, usize),
+    next: (usize, usize),
+    axis: usize,
+    line: usize,
+}
+
+/// The links of a `w × h` image that touch a free texel, row by row.
+fn free_links(w: usize, h: usize, free: &[bool]) -> impl Iterator<Item = Link> + '_ {
+    (0..h).flat_map(move |y| {
+        (0..w).flat_map(move |x| {
+            [(x + 1, y, 0, x), (x, y + 1, 1, y)]
+                .into_iter()
+                .filter(move |&(nx, ny, _, _)| {
+                    nx < w && ny < h && (free[y * w + x] || free[ny * w + nx])
+                })
+                .map(move |(nx, ny, axis, line)| Link {
+                    q: y * w + x,
+                    n: ny * w + nx,
+                    at: (x, y),
+                    next: (nx, ny),
+                    axis,
+                    line,
+                })
+        })
+    })
+}
+
+/// Adds to channel `k` of an image with `c` channels, on its free texels, the masked
+/// Poisson correction whose divergence is `rhs` ([`crate::analysis::heal::solve_masked`]).
+fn add_correction(
+    img: &mut [f32],
+    (c, k): (usize, usize),
+    lattice: &crate::lattice::Lattice,
+    free: &[bool],
+    rhs: &[f64],
+) {
+    let correction = crate::analysis::heal::solve_masked(lattice, free, rhs);
+    for (q, &v) in correction.iter().enumerate() {
+        if free[q] {
+            img[q * c + k] = (img[q * c + k] as f64 + v) as f32;
+        }
+    }
 }
 
 /// Most rounds of [`even_lines`]: each scales every line's steps by the square root of
@@ -257,19 +293,13 @@ type LineSteps = [Vec<(f64, usize)>; 2];
 
 fn line_steps(img: &[f32], (w, h, c): (usize, usize, usize), free: &[bool]) -> LineSteps {
     let mut lines = [vec![(0.0f64, 0usize); w], vec![(0.0f64, 0usize); h]];
-    for y in 0..h {
-        for x in 0..w {
-            let q = y * w + x;
-            for (nx, ny, axis, i) in [(x + 1, y, 0, x), (x, y + 1, 1, y)] {
-                if nx >= w || ny >= h || !(free[q] || free[ny * w + nx]) {
-                    continue;
-                }
-                let n = ny * w + nx;
-                let l = &mut lines[axis][i];
-                l.0 += sq(&img[q * c..][..c], &img[n * c..][..c]);
-                l.1 += 1;
-            }
-        }
+    for Link {
+        q, n, axis, line, ..
+    } in free_links(w, h, free)
+    {
+        let l = &mut lines[axis][line];
+        l.0 += sq(&img[q * c..][..c], &img[n * c..][..c]);
+        l.1 += 1;
     }
     lines
 }
@@ -306,27 +336,16 @@ fn scale_lines(
     let lattice = crate::lattice::Lattice::rectangular(w as i64, h as i64)?;
     for k in 0..c {
         let mut b = vec![0.0f64; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let q = y * w + x;
-                for (nx, ny, axis, i) in [(x + 1, y, 0, x), (x, y + 1, 1, y)] {
-                    if nx >= w || ny >= h || !(free[q] || free[ny * w + nx]) {
-                        continue;
-                    }
-                    let n = ny * w + nx;
-                    let d = img[n * c + k] as f64 - img[q * c + k] as f64;
-                    let r = d * (gains[axis][i] - 1.0);
-                    b[n] += r;
-                    b[q] -= r;
-                }
-            }
+        for Link {
+            q, n, axis, line, ..
+        } in free_links(w, h, free)
+        {
+            let d = img[n * c + k] as f64 - img[q * c + k] as f64;
+            let r = d * (gains[axis][line] - 1.0);
+            b[n] += r;
+            b[q] -= r;
         }
-        let correction = crate::analysis::heal::solve_masked(&lattice, free, &b);
-        for (q, &v) in correction.iter().enumerate() {
-            if free[q] {
-                img[q * c + k] = (img[q * c + k] as f64 + v) as f32;
-            }
-        }
+        add_correction(img, (c, k), &lattice, free, &b);
     }
     Ok(())
 }
