@@ -133,10 +133,29 @@ impl RealFft2 {
 
     /// Half spectrum of a real row-major plane.
     pub fn forward(&mut self, plane: &[f64]) -> Vec<Complex64> {
+        assert_eq!(
+            plane.len(),
+            self.width * self.height,
+            "RealFft2: wrong plane size"
+        );
+        let mut half = vec![Complex64::default(); self.half_width() * self.height];
+        self.forward_top(plane, self.height, &mut half);
+        half
+    }
+
+    /// [`RealFft2::forward`] into `half` (half_width × height) of a plane whose rows from
+    /// `rows` on are zero: only its first `rows` rows are read (`plane` may hold just
+    /// those), and the row transforms of the others, zero, are not computed.
+    pub fn forward_top(&mut self, plane: &[f64], rows: usize, half: &mut [Complex64]) {
         let (w, h, hw) = (self.width, self.height, self.half_width());
-        assert_eq!(plane.len(), w * h, "RealFft2: wrong plane size");
-        let mut half = vec![Complex64::default(); hw * h];
-        for (row, out) in plane.chunks_exact(w).zip(half.chunks_exact_mut(hw)) {
+        let rows = rows.min(h);
+        assert!(plane.len() >= w * rows, "RealFft2: plane too small");
+        assert_eq!(half.len(), hw * h, "RealFft2: wrong spectrum size");
+        for (row, out) in plane
+            .chunks_exact(w)
+            .take(rows)
+            .zip(half.chunks_exact_mut(hw))
+        {
             self.real_row.copy_from_slice(row);
             // Lengths match the plan, the only error realfft reports for a forward
             // transform.
@@ -144,20 +163,33 @@ impl RealFft2 {
                 self.row_fwd
                     .process_with_scratch(&mut self.real_row, out, &mut self.real_scratch);
         }
-        self.columns(&mut half, true);
-        half
+        half[rows * hw..].fill(Complex64::default());
+        self.columns(half, true);
     }
 
     /// Real plane of a half spectrum, normalised (divided by `width · height`). The
     /// imaginary parts of columns 0 and, for an even width, width/2 are dropped: the
     /// real part of the full inverse, as [`inverse_real`] takes it.
     pub fn inverse(&mut self, mut half: Vec<Complex64>) -> Vec<f64> {
+        let mut plane = vec![0.0; self.width * self.height];
+        self.inverse_top(&mut half, self.height, &mut plane);
+        plane
+    }
+
+    /// [`RealFft2::inverse`] of `half` (overwritten) into the first `rows` rows of the
+    /// plane, `plane` (at least width × rows): the other rows are not computed.
+    pub fn inverse_top(&mut self, half: &mut [Complex64], rows: usize, plane: &mut [f64]) {
         let (w, h, hw) = (self.width, self.height, self.half_width());
+        let rows = rows.min(h);
         assert_eq!(half.len(), hw * h, "RealFft2: wrong spectrum size");
-        self.columns(&mut half, false);
+        assert!(plane.len() >= w * rows, "RealFft2: plane too small");
+        self.columns(half, false);
         let scale = 1.0 / (w * h) as f64;
-        let mut plane = vec![0.0; w * h];
-        for (row, out) in half.chunks_exact_mut(hw).zip(plane.chunks_exact_mut(w)) {
+        for (row, out) in half
+            .chunks_exact_mut(hw)
+            .zip(plane.chunks_exact_mut(w))
+            .take(rows)
+        {
             row[0].im = 0.0;
             if w % 2 == 0 {
                 row[hw - 1].im = 0.0;
@@ -170,7 +202,6 @@ impl RealFft2 {
                 *v *= scale;
             }
         }
-        plane
     }
 
     fn columns(&mut self, half: &mut [Complex64], forward: bool) {
@@ -218,6 +249,33 @@ pub fn inverse_real(plan: &mut Fft2, mut spectrum: Vec<Complex64>) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// forward_top and inverse_top against the full transforms: a plane whose rows from
+    /// r on are zero has the same half spectrum, and the first rows of the inverse are
+    /// the same, bit for bit, on even and odd sizes.
+    #[test]
+    fn top_transforms_are_the_full_ones_cut_short() {
+        for (w, h, r) in [(12usize, 10usize, 4usize), (9, 7, 3), (16, 9, 9)] {
+            let plane: Vec<f64> = (0..w * h)
+                .map(|i| {
+                    if i / w < r {
+                        ((i * 7919) % 101) as f64 / 17.0 - 2.0
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let mut plan = RealFft2::new(w, h);
+            let full = plan.forward(&plane);
+            let mut top = vec![Complex64::new(9.0, 9.0); full.len()];
+            plan.forward_top(&plane[..w * r], r, &mut top);
+            assert_eq!(top, full, "{w}×{h}, {r} rows: forward");
+            let back = plan.inverse(full.clone());
+            let mut rows = vec![7.0; w * r];
+            plan.inverse_top(&mut top, r, &mut rows);
+            assert_eq!(rows[..], back[..w * r], "{w}×{h}, {r} rows: inverse");
+        }
+    }
 
     /// The slow twin: a direct O(n²) 2-D DFT.
     fn naive_dft(plane: &[Complex64], w: usize, h: usize) -> Vec<Complex64> {

@@ -34,7 +34,7 @@ use rustfft::num_complex::Complex64;
 use super::model::RsgfModel;
 use super::{Metric, RsgfParams};
 use crate::analysis::ncc::{FLAT, integral};
-use crate::fft::Fft2;
+use crate::fft::RealFft2;
 use crate::raster::Raster;
 
 /// Exemplars above this many pixels search many-candidate gaps coarse to fine.
@@ -66,14 +66,55 @@ pub(crate) struct GapTables {
     /// The ring as row segments (y, x0, x1) of the patch, and its pixel count N.
     ring: Vec<(usize, usize, usize)>,
     ring_px: usize,
-    /// Per position and channel: Σ_R f and Σ_R f².
+    /// Per position and channel: Σ_R f.
     sum_f: Vec<f64>,
-    sum_f2: Vec<f64>,
+    /// Per position and channel: √(N·Σ_R f² − (Σ_R f)²), the NCC's spread of f, or −1
+    /// where the patch is flat (at most [`FLAT`]·N²·var): a pure function of the
+    /// position, so tabulated rather than taken again for every gap.
+    spread_f: Vec<f64>,
     /// Per position: Σ_c Σ_R f².
     ssd_base: Vec<f64>,
-    /// FFT of each centred channel, W × H.
+    /// Side of the correlation's FFTs: W × H padded with zeros to sizes whose only
+    /// prime factors are 2, 3 and 5 ([`fft_size`]).
+    fw: usize,
+    fh: usize,
+    /// Half spectrum ([`RealFft2`]) of each centred channel, padded to fw × fh.
     spectra: Vec<Vec<Complex64>>,
-    plans: Mutex<Vec<Fft2>>,
+    /// Plans and buffers of the correlation, one per thread that has used one.
+    scratch: Mutex<Vec<CrossScratch>>,
+}
+
+/// What one FFT correlation works in, kept between gaps: a plan, and buffers that
+/// would otherwise be allocated and zeroed for every gap.
+struct CrossScratch {
+    plan: RealFft2,
+    /// The border's rows (ext × fw), zero right of the border.
+    plane: Vec<f64>,
+    /// The border's half spectrum, and the sum of products over channels.
+    spectrum: Vec<Complex64>,
+    acc: Vec<Complex64>,
+    /// The correlation's rows of valid positions (ny × fw), per cross channel.
+    maps: Vec<Vec<f64>>,
+}
+
+/// The smallest even size ≥ n whose only prime factors are 2, 3 and 5: a correlation
+/// padded with zeros to it is the same correlation, and its FFT avoids the slow paths
+/// of large prime factors (the 144-px crack photo with its 10-px mirrored border is 164
+/// = 4 · 41 a side, whose FFTs went through Rader's algorithm).
+pub(crate) fn fft_size(n: usize) -> usize {
+    let smooth = |mut m: usize| {
+        for p in [2, 3, 5] {
+            while m % p == 0 {
+                m /= p;
+            }
+        }
+        m == 1
+    };
+    let mut m = n.max(2);
+    while m % 2 == 1 || !smooth(m) {
+        m += 1;
+    }
+    m
 }
 
 impl GapTables {
@@ -104,11 +145,13 @@ impl GapTables {
             .collect();
         let ring_px = ring.iter().map(|&(_, a, b)| b - a).sum();
         let mut sum_f = vec![0.0; nx * ny * c];
-        let mut sum_f2 = vec![0.0; nx * ny * c];
+        let mut spread_f = vec![0.0; nx * ny * c];
         let mut ssd_base = vec![0.0; nx * ny];
         let inner = block - o2;
+        let n = ring_px as f64;
         let mut spectra = Vec::with_capacity(c);
-        let mut plan = Fft2::new(w, h);
+        let (fw, fh) = (fft_size(w), fft_size(h));
+        let mut plan = RealFft2::new(fw, fh);
         for ch in 0..c {
             let plane: Vec<f64> = (0..w * h).map(|i| centred[i * c + ch]).collect();
             let t1 = integral(&plane, w, h, false);
@@ -119,12 +162,22 @@ impl GapTables {
                         rect(t, w, qx, qy, ext, ext) - rect(t, w, qx + o2, qy + o2, inner, inner)
                     };
                     let q = qy * nx + qx;
-                    sum_f[q * c + ch] = ring_sum(&t1);
-                    sum_f2[q * c + ch] = ring_sum(&t2);
-                    ssd_base[q] += sum_f2[q * c + ch];
+                    let (sf, sf2) = (ring_sum(&t1), ring_sum(&t2));
+                    sum_f[q * c + ch] = sf;
+                    ssd_base[q] += sf2;
+                    let vf = n * sf2 - sf * sf;
+                    spread_f[q * c + ch] = if vf <= FLAT * n * n * var[ch] {
+                        -1.0
+                    } else {
+                        vf.sqrt()
+                    };
                 }
             }
-            spectra.push(crate::fft::forward_real(&mut plan, &plane));
+            let mut padded = vec![0.0; fw * fh];
+            for (row, src) in padded.chunks_exact_mut(fw).zip(plane.chunks_exact(w)) {
+                row[..w].copy_from_slice(src);
+            }
+            spectra.push(plan.forward(&padded));
         }
         GapTables {
             coarse: coarse_tables(ex, params),
@@ -140,10 +193,12 @@ impl GapTables {
             ring,
             ring_px,
             sum_f,
-            sum_f2,
+            spread_f,
             ssd_base,
+            fw,
+            fh,
             spectra,
-            plans: Mutex::new(vec![plan]),
+            scratch: Mutex::new(Vec::new()),
         }
     }
 
@@ -212,53 +267,73 @@ impl GapTables {
     }
 
     /// The same cross terms from one FFT correlation of the exemplar with the border
-    /// per channel (no wrap-around: a patch at a valid position stays inside W × H).
+    /// per channel, through real FFTs of the planes padded with zeros to fw × fh (no
+    /// wrap-around: a patch at a valid position stays inside W × H).
     pub(crate) fn cross_fft(&self, g: &[f64], cands: &[u32]) -> Vec<f64> {
-        let (w, h, c, ext) = (self.w, self.h, self.c, self.ext);
+        let (fw, fh, c, ext) = (self.fw, self.fh, self.c, self.ext);
+        let ny = self.h + 1 - ext;
         let cc = self.cross_channels();
-        let mut plan = self
-            .plans
+        let mut s = self
+            .scratch
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .pop()
-            .unwrap_or_else(|| Fft2::new(w, h));
-        let mut maps = Vec::with_capacity(cc);
-        let mut acc = vec![Complex64::default(); w * h];
+            .unwrap_or_else(|| {
+                let plan = RealFft2::new(fw, fh);
+                let half = plan.half_width() * fh;
+                CrossScratch {
+                    plan,
+                    plane: vec![0.0; ext * fw],
+                    spectrum: vec![Complex64::default(); half],
+                    acc: vec![Complex64::default(); half],
+                    maps: vec![vec![0.0; ny * fw]; cc],
+                }
+            });
+        let CrossScratch {
+            plan,
+            plane,
+            spectrum,
+            acc,
+            maps,
+        } = &mut s;
+        acc.fill(Complex64::default());
+        let mut k = 0;
         for ch in 0..c {
-            let mut gg = vec![Complex64::default(); w * h];
-            for y in 0..ext {
-                for x in 0..ext {
-                    gg[y * w + x].re = g[(y * ext + x) * c + ch];
+            for (y, row) in plane.chunks_exact_mut(fw).enumerate() {
+                for (x, v) in row[..ext].iter_mut().enumerate() {
+                    *v = g[(y * ext + x) * c + ch];
                 }
             }
-            plan.forward(&mut gg);
-            for ((a, f), gv) in acc.iter_mut().zip(&self.spectra[ch]).zip(&gg) {
+            plan.forward_top(plane, ext, spectrum);
+            for ((a, f), gv) in acc.iter_mut().zip(&self.spectra[ch]).zip(spectrum.iter()) {
                 *a += f * gv.conj();
             }
             if cc > 1 || ch == c - 1 {
-                let spectrum = std::mem::replace(&mut acc, vec![Complex64::default(); w * h]);
-                maps.push(crate::fft::inverse_real(&mut plan, spectrum));
+                plan.inverse_top(acc, ny, &mut maps[k]);
+                acc.fill(Complex64::default());
+                k += 1;
             }
         }
-        self.plans
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(plan);
         let mut out = vec![0.0; cands.len() * cc];
         for (n, &q) in cands.iter().enumerate() {
             let (qx, qy) = (q as usize % self.nx, q as usize / self.nx);
             for (k, map) in maps.iter().enumerate() {
-                out[n * cc + k] = map[qy * w + qx];
+                out[n * cc + k] = map[qy * fw + qx];
             }
         }
+        self.scratch
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(s);
         out
     }
 
-    /// Whether the FFT costs less than direct dot products for `n` candidates.
+    /// Whether the FFT costs less than direct dot products for `n` candidates: c + cc
+    /// real transforms of fw × fh, each about half a complex one.
     fn use_fft(&self, n: usize) -> bool {
         let direct = n as f64 * (self.ring_px * self.c) as f64;
-        let px = (self.w * self.h) as f64;
-        let fft = 2.0 * (self.c + self.cross_channels()) as f64 * px * px.log2();
+        let px = (self.fw * self.fh) as f64;
+        let fft = (self.c + self.cross_channels()) as f64 * px * px.log2();
         direct > fft
     }
 
@@ -310,22 +385,30 @@ impl GapTables {
                         }
                     }
                 }
+                // The border's spread per channel, or −1 where it is flat.
+                let spread_g: Vec<f64> = (0..c)
+                    .map(|ch| {
+                        let vg = n * sg2[ch] - sg[ch] * sg[ch];
+                        if vg <= FLAT * n * n * self.var[ch] {
+                            -1.0
+                        } else {
+                            vg.sqrt()
+                        }
+                    })
+                    .collect();
                 cands
                     .iter()
                     .enumerate()
                     .map(|(k, &q)| {
                         let (mut num, mut den) = (0.0, 0.0);
+                        let at = q as usize * c;
                         for ch in 0..c {
-                            let sf = self.sum_f[q as usize * c + ch];
-                            let sf2 = self.sum_f2[q as usize * c + ch];
-                            let vf = n * sf2 - sf * sf;
-                            let vg = n * sg2[ch] - sg[ch] * sg[ch];
-                            let flat = FLAT * n * n * self.var[ch];
-                            if vf <= flat || vg <= flat {
+                            let (sf, spread) = (self.sum_f[at + ch], self.spread_f[at + ch]);
+                            if spread < 0.0 || spread_g[ch] < 0.0 {
                                 continue;
                             }
                             num += n * cross[k * c + ch] - sf * sg[ch];
-                            den += vf.sqrt() * vg.sqrt();
+                            den += spread * spread_g[ch];
                         }
                         if den > 0.0 { -(num / den) } else { 0.0 }
                     })
@@ -558,7 +641,45 @@ mod tests {
             );
             let (sa, sb) = (t.scores_from(&g, &cands, &a), t.scores_from(&g, &cands, &b));
             assert!(sa.iter().all(|s| s.is_finite()) && sa.len() == sb.len());
+            // The buffers kept between gaps carry nothing over: another border first,
+            // then this one again, gives the same bits.
+            let other: Vec<f64> = g.iter().map(|v| 3.0 * v + 1.0).collect();
+            let _ = t.cross_fft(&other, &cands);
+            let again = t.cross_fft(&g, &cands);
+            assert!(
+                again
+                    .iter()
+                    .zip(&b)
+                    .all(|(x, y)| x.to_bits() == y.to_bits()),
+                "c = {c}, {metric:?}: a second correlation differs from the first"
+            );
         }
+    }
+
+    /// fft_size against its definition, by brute force: the smallest even m ≥ n with no
+    /// prime factor above 5; and the sizes the photos of the structure figures meet.
+    #[test]
+    fn fft_sizes_are_the_next_even_5_smooth_numbers() {
+        let five_smooth = |mut m: usize| {
+            for p in [2, 3, 5] {
+                while m % p == 0 {
+                    m /= p;
+                }
+            }
+            m == 1
+        };
+        for n in 0..3000 {
+            let want = (n.max(1)..)
+                .find(|&m| m % 2 == 0 && five_smooth(m))
+                .unwrap();
+            assert_eq!(fft_size(n), want, "n = {n}");
+        }
+        // The crack photo (144 + 2 · 10 mirrored) and a 256² one (276): 41 and 23 were
+        // the prime factors whose FFTs were slow.
+        assert_eq!(
+            (fft_size(164), fft_size(276), fft_size(120)),
+            (180, 288, 120)
+        );
     }
 
     /// Coarse to fine on a large exemplar (a 320² crop of the measured AFM map di-6, so
