@@ -61,6 +61,9 @@ pub(crate) struct GapTables {
     metric: Metric,
     /// Level 0 with each channel's mean removed, f64, interleaved.
     centred: Vec<f64>,
+    /// The same per channel (planes of W × H), where the cross term is kept per
+    /// channel (NCC of several channels); empty otherwise.
+    planar: Vec<Vec<f64>>,
     /// Variance of each channel (for the flatness test of the NCC).
     var: Vec<f64>,
     /// The ring as row segments (y, x0, x1) of the patch, and its pixel count N.
@@ -179,8 +182,16 @@ impl GapTables {
             }
             spectra.push(plan.forward(&padded));
         }
+        let planar = if params.metric == Metric::Ncc && c > 1 {
+            (0..c)
+                .map(|ch| (0..w * h).map(|i| centred[i * c + ch]).collect())
+                .collect()
+        } else {
+            Vec::new()
+        };
         GapTables {
             coarse: coarse_tables(ex, params),
+            planar,
             w,
             h,
             c,
@@ -242,24 +253,36 @@ impl GapTables {
         }
     }
 
-    /// Σ_R f(q + x)·g(x) for each candidate, by dot products over the ring.
+    /// Σ_R f(q + x)·g(x) for each candidate, by dot products over the ring: over all
+    /// channels at once where one cross term is kept (SSD, or one channel), per
+    /// channel on planar copies otherwise.
     pub(crate) fn cross_direct(&self, g: &[f64], cands: &[u32]) -> Vec<f64> {
-        let (c, cc) = (self.c, self.cross_channels());
+        let (c, cc, ext) = (self.c, self.cross_channels(), self.ext);
         let mut out = vec![0.0; cands.len() * cc];
+        if cc == 1 {
+            for (acc, &q) in out.iter_mut().zip(cands) {
+                let (qx, qy) = (q as usize % self.nx, q as usize / self.nx);
+                for &(y, x0, x1) in &self.ring {
+                    let f0 = ((qy + y) * self.w + qx + x0) * c;
+                    let g0 = (y * ext + x0) * c;
+                    let len = (x1 - x0) * c;
+                    *acc += dot(&self.centred[f0..f0 + len], &g[g0..g0 + len]);
+                }
+            }
+            return out;
+        }
+        let planes: Vec<Vec<f64>> = (0..c)
+            .map(|ch| (0..ext * ext).map(|i| g[i * c + ch]).collect())
+            .collect();
         for (n, &q) in cands.iter().enumerate() {
             let (qx, qy) = (q as usize % self.nx, q as usize / self.nx);
             let acc = &mut out[n * cc..(n + 1) * cc];
             for &(y, x0, x1) in &self.ring {
-                let f0 = ((qy + y) * self.w + qx + x0) * c;
-                let g0 = (y * self.ext + x0) * c;
-                let len = (x1 - x0) * c;
-                let (fs, gs) = (&self.centred[f0..f0 + len], &g[g0..g0 + len]);
-                if cc == 1 {
-                    acc[0] += dot(fs, gs);
-                } else {
-                    for (k, (a, b)) in fs.iter().zip(gs).enumerate() {
-                        acc[k % c] += a * b;
-                    }
+                let f0 = (qy + y) * self.w + qx + x0;
+                let g0 = y * ext + x0;
+                let len = x1 - x0;
+                for ((a, f), gp) in acc.iter_mut().zip(&self.planar).zip(&planes) {
+                    *a += dot(&f[f0..f0 + len], &gp[g0..g0 + len]);
                 }
             }
         }
