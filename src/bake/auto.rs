@@ -41,7 +41,8 @@
 //! lowest coherence of the three (0.20–0.33, against synth's 0.20–0.39 and
 //! texture-synthesis' 0.32–0.44) and better completeness than texture-synthesis on
 //! all seven (0.07–0.12 against 0.18–0.32), keeps the standard deviation (0.89–1.02;
-//! synth 0.81–1.02), and fills 1024² in 0.17–0.74 s. Synth, whose correction passes
+//! synth 0.81–1.02), and fills 1024² in 0.18–0.37 s (`surftile render` far from the
+//! origin, 2026-11-27). Synth, whose correction passes
 //! smear small exemplars (the 127 × 80 rocks photo loses its dark joints: standard
 //! deviation 0.81), stays available by name.
 //!

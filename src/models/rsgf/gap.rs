@@ -18,8 +18,19 @@
 //!
 //! Ties go to the smallest position index (row, then column).
 //!
+//! **The correlation's FFTs** are real ([`RealFft2`]), on the exemplar padded with zeros
+//! to sizes with no prime factor above 5 ([`fft_size`]); padding does not change a
+//! correlation at the valid positions, only which FFT algorithms run. With several
+//! channels kept apart (NCC), the direct dot products run per channel on planar copies.
+//! Both round differently from the complex, unpadded FFTs and the interleaved sums
+//! they replaced, so a near-tie could in principle go the other way; on five photos
+//! no pick moved (their 1024² renders far from the origin are bit-identical to those
+//! before, 2026-11-27), and `tests::fft_and_direct_cross_terms_agree` bounds the two
+//! paths' difference.
+//!
 //! **Large exemplars, coarse to fine.** With every position a candidate (stochastic
-//! mode), the FFT correlation costs O(W·H·log) per gap: 0.15 s on a 1024² RGB photo.
+//! mode), the FFT correlation costs O(W·H·log) per gap: 0.15 s on a 1024² RGB photo
+//! (complex FFTs, before they were real).
 //! Above [`COARSE_ABOVE`] pixels the search runs first on the exemplar box-filtered by
 //! a power of two s (to at most 256² pixels), with the block, border and the gap's
 //! border scaled alike; the [`COARSE_KEEP`] best coarse positions then have every fine
