@@ -118,14 +118,14 @@ struct CrossScratch {
 pub(crate) fn fft_size(n: usize) -> usize {
     let smooth = |mut m: usize| {
         for p in [2, 3, 5] {
-            while m % p == 0 {
+            while m.is_multiple_of(p) {
                 m /= p;
             }
         }
         m == 1
     };
     let mut m = n.max(2);
-    while m % 2 == 1 || !smooth(m) {
+    while !m.is_multiple_of(2) || !smooth(m) {
         m += 1;
     }
     m
@@ -694,17 +694,16 @@ mod tests {
     /// prime factor above 5; and the sizes the photos of the structure figures meet.
     #[test]
     fn fft_sizes_are_the_next_even_5_smooth_numbers() {
-        let five_smooth = |mut m: usize| {
-            for p in [2, 3, 5] {
-                while m % p == 0 {
-                    m /= p;
-                }
-            }
-            m == 1
+        // The twin by definition: no divisor above 5 is prime.
+        let is_prime = |p: usize| {
+            (2..p)
+                .take_while(|d| d * d <= p)
+                .all(|d| !p.is_multiple_of(d))
         };
-        for n in 0..3000 {
+        let five_smooth = |m: usize| (7..=m).all(|d| !m.is_multiple_of(d) || !is_prime(d));
+        for n in 0..1200 {
             let want = (n.max(1)..)
-                .find(|&m| m % 2 == 0 && five_smooth(m))
+                .find(|&m: &usize| m.is_multiple_of(2) && five_smooth(m))
                 .unwrap();
             assert_eq!(fft_size(n), want, "n = {n}");
         }
