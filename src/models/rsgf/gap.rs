@@ -166,10 +166,12 @@ impl GapTables {
         let mut spectra = Vec::with_capacity(c);
         let (fw, fh) = (fft_size(w), fft_size(h));
         let mut plan = RealFft2::new(fw, fh);
-        for ch in 0..c {
-            let plane: Vec<f64> = (0..w * h).map(|i| centred[i * c + ch]).collect();
-            let t1 = integral(&plane, w, h, false);
-            let t2 = integral(&plane, w, h, true);
+        let planes: Vec<Vec<f64>> = (0..c)
+            .map(|ch| (0..w * h).map(|i| centred[i * c + ch]).collect())
+            .collect();
+        for (ch, plane) in planes.iter().enumerate() {
+            let t1 = integral(plane, w, h, false);
+            let t2 = integral(plane, w, h, true);
             for qy in 0..ny {
                 for qx in 0..nx {
                     let ring_sum = |t: &[f64]| {
@@ -193,10 +195,9 @@ impl GapTables {
             }
             spectra.push(plan.forward(&padded));
         }
+        // The planes are kept only where the direct cross terms read them.
         let planar = if params.metric == Metric::Ncc && c > 1 {
-            (0..c)
-                .map(|ch| (0..w * h).map(|i| centred[i * c + ch]).collect())
-                .collect()
+            planes
         } else {
             Vec::new()
         };
