@@ -2,7 +2,8 @@
 //! each map, a stitched (or cropped) output, plane-levelled, against the measurement as
 //! the pipeline saw it, by the foundation's figures — the standardised height-histogram
 //! W1 and the PSD error — each with its bar: the foundation's threshold (0.05, 0.15), or
-//! 1.2× the map's own top-half/bottom-half difference where that is larger.
+//! 1.2× the difference between the map's own halves where that is larger (top against
+//! bottom and left against right, the larger of the two: `stats::fidelity_bars`).
 //!
 //! The measurement is first made a scale-limited surface (ISO 25178-3): missing points
 //! form removed by the F-operator `--level` (default `poly:2`) and, for the maps named by

@@ -2,8 +2,9 @@
 //! 1024², and compare with the exemplar after plane levelling.
 //!
 //! Thresholds: standardised height-histogram W1 < 0.05; PSD error < 0.15; seam score on
-//! the triangle grid within [0.9, 1.1]. Where the map's top half differs from its bottom
-//! half by more than that (a small or uneven map), the bar is 1.2× that self-difference.
+//! the triangle grid within [0.9, 1.1]. Where the map's halves differ by more than that
+//! (a small or uneven map; top against bottom and left against right, the larger), the
+//! bar is 1.2× that self-difference.
 //! On failure the render is written under `target/test-output/`.
 
 use std::path::{Path, PathBuf};
