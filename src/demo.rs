@@ -6,7 +6,11 @@
 //! (seed 003) on a near-regular one: the ridged X3P profile `tiles/x3p-2-crop.npy`,
 //! baked into 4 double toroidal tiles on its detected lattice and rendered at 1024².
 //! Then RSGF (seed 002) on the same profile: its lattice estimated by generalized NCC,
-//! 1024² synthesized by random sampling and gap filling. Then face milling (seed 000
+//! 1024² synthesized by random sampling and gap filling. Then a photo, scikit-image's
+//! gravel (`tiles/skimage-gravel-256.png`): `bake --method auto` picks the method and
+//! says why, a 1024² synthesis is written as an 8-bit PNG, and the structure figures
+//! of its top-left 512² (issue 31: coherence, completeness, self-repetition, copy
+//! score, seams at any phase) go to `gravel-structure.json`. Then face milling (seed 000
 //! §4) from the bundled presets: a parallel path in the paper's Fig. 25 field and a
 //! spiral around its origin. Then a shaded gallery of the seed 001 model presets
 //! (`rugged-{rock,china,casting,cells-convex,cells-concave}.png`), each with its
@@ -27,6 +31,7 @@ use crate::models::rsgf::RsgfSurface;
 use crate::models::rugged::ModelConfig;
 use crate::render::{LayerOutputs, render_imperfect, render_region, render_to_file};
 use crate::shade::ShadeOptions;
+use crate::stats::structure::structure;
 use crate::stats::{compare, height_stats, seam_score};
 use crate::stream::{BlendSurface, Region, ToroidalSurface};
 
@@ -38,6 +43,10 @@ const EXEMPLAR_SPACING_UM: f64 = 10.0 / 512.0;
 /// `x3p-2` (650 × 400, µm), ridges about 71 px apart. Its pixels are not square (0.128 µm
 /// across, 0.315 µm along the ridges), so it is rendered without a spacing.
 const RIDGED: &[u8] = include_bytes!("../tiles/x3p-2-crop.npy");
+
+/// The bundled photo: scikit-image's gravel (CC0), 256 × 256 grey levels, for `auto`
+/// and the structure figures (issue 31).
+const GRAVEL: &[u8] = include_bytes!("../tiles/skimage-gravel-256.png");
 
 /// One file the demo wrote and how long it took.
 #[derive(Debug, Clone)]
@@ -139,12 +148,8 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
         &render,
         Some(bank.header.triangle_edge() as usize),
     );
-    let json = serde_json::to_string_pretty(&figures)
-        .map_err(|e| Error::decode("stats", e.to_string()))?;
     let path = dir.join("stats.json");
-    write_atomically(&path, |w| {
-        std::io::Write::write_all(w, json.as_bytes()).map_err(|e| Error::io(&path, e))
-    })?;
+    write_json(&path, &figures)?;
     step("quality figures, exemplar vs render (JSON)", path, t);
 
     let t = Instant::now();
@@ -222,6 +227,68 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
             seam_score(&render, 40),
             height_stats(&render).repetition,
             height_stats(&ridged_levelled).repetition
+        ),
+        path,
+        t,
+    );
+
+    // A photo (issue 31): `auto` picks the method and says why. On gravel it takes RSGF
+    // in stochastic mode, which copies whole stones and joins them along cuts.
+    let t = Instant::now();
+    let gravel = read_image_bytes(
+        GRAVEL,
+        Format::Png,
+        "tiles/skimage-gravel-256.png",
+        &ReadOptions::default(),
+    )?;
+    let auto = Baker::builder().method(Method::Auto).build()?;
+    let mut why = String::new();
+    let bank = auto.bake(&gravel, "tiles/skimage-gravel-256.png", &mut |line| {
+        if let Some(reason) = line.strip_prefix("auto: ") {
+            why = reason.to_string();
+        }
+    })?;
+    let bank_path = dir.join("gravel.bank");
+    crate::kinds::write_bank(&bank, &bank_path)?;
+    step(
+        &format!("bake: the 256×256 gravel photo, method auto: {why}"),
+        bank_path,
+        t,
+    );
+    let t = Instant::now();
+    // The photo as the bake saw it (flat-fielded), for the figures.
+    let (photo, _) = auto.preprocess(&gravel, "gravel")?;
+    let surface = crate::kinds::open(&bank, 0)?;
+    let synthesis = render_region(
+        surface.as_ref(),
+        &Region::new(0.0, 0.0, 1024, 1024),
+        &mut |_| {},
+    )?;
+    let path = dir.join("gravel-synthesis.png");
+    // Values are the photo's own grey levels (0–255).
+    let levels: Vec<u8> = synthesis
+        .data
+        .iter()
+        .map(|&v| v.round().clamp(0.0, 255.0) as u8)
+        .collect();
+    crate::io::write_png8(&path, 1024, 1024, synthesis.channels, &levels)?;
+    step(
+        "gravel synthesis, 1024×1024 at the origin (8-bit PNG)",
+        path,
+        t,
+    );
+    let t = Instant::now();
+    // On the top-left 512² (the same pixels a 512² render gives): at 1024² the patch
+    // searches take about 20 s on two cores, four times the rest of the demo.
+    let corner = synthesis.crop(0, 0, 512, 512)?;
+    let figures = structure(&photo, &corner, None);
+    let path = dir.join("gravel-structure.json");
+    write_json(&path, &figures)?;
+    step(
+        &format!(
+            "structure figures, its top-left 512² vs the photo (JSON): coherence {:.3}, \
+             completeness {:.3}, self-repetition {:.3}, copy score {:.3}",
+            figures.coherence, figures.completeness, figures.self_repetition, figures.copy_score
         ),
         path,
         t,
@@ -342,4 +409,13 @@ pub fn run_demo(dir: &Path, report: &mut dyn FnMut(&DemoStep)) -> Result<Vec<Dem
         );
     }
     Ok(steps)
+}
+
+/// Writes `value` as pretty JSON to `path`, atomically.
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let json = serde_json::to_string_pretty(value)
+        .map_err(|e| Error::decode(path.display().to_string(), e.to_string()))?;
+    write_atomically(path, |w| {
+        std::io::Write::write_all(w, json.as_bytes()).map_err(|e| Error::io(path, e))
+    })
 }

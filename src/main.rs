@@ -1900,7 +1900,7 @@ fn run(command: Command) -> Result<()> {
             run_demo(&out_dir, &mut |s| {
                 println!(
                     "  {:<62} {:>7.3} s  {}",
-                    s.what,
+                    cli_words(&s.what),
                     s.seconds,
                     s.path.display()
                 );

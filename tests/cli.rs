@@ -453,6 +453,9 @@ fn demo_writes_the_gallery() {
         "roller-height.png",
         "x3p-2-rsgf.bank",
         "rsgf-height.png",
+        "gravel.bank",
+        "gravel-synthesis.png",
+        "gravel-structure.json",
         "milling-parallel.bank",
         "milling-parallel.png",
         "milling-parallel-shaded.png",
@@ -479,6 +482,23 @@ fn demo_writes_the_gallery() {
     )
     .unwrap();
     assert!(stats["w1"].as_f64().unwrap() < 0.05, "{stats}");
+    // The photo: auto takes RSGF, and the synthesis meets issue 31's bars on
+    // repetition (self-repetition ≤ 0.15, copy score ≤ 0.3) and stays far closer to
+    // the photo's patches than random phases (coherence 0.203 on the top-left 512², in
+    // docs/structure.md; RPN noise reads about 1 or more).
+    assert!(
+        r.stdout.contains("method auto: ") && r.stdout.contains("rsgf --stochastic"),
+        "{}",
+        r.stdout
+    );
+    let figures: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("surftile-demo/gravel-structure.json")).unwrap(),
+    )
+    .unwrap();
+    let figure = |k: &str| figures[k].as_f64().unwrap();
+    assert!(figure("coherence") < 0.5, "{figures}");
+    assert!(figure("self_repetition") <= 0.15, "{figures}");
+    assert!(figure("copy_score") <= 0.3, "{figures}");
 }
 
 /// `surftile mill` renders a preset; `bake --method milling` writes a bank that
