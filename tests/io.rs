@@ -54,16 +54,26 @@ fn png16_levels(path: &Path) -> (png::ColorType, Vec<u16>) {
 /// scale, so any viewer shows the photo's colours: level = v / 255 · 65535, not stretched
 /// to its own range (which turned a pale lavender photo deep blue). Unit colour uses 1,
 /// 16-bit colour 65535; heights, and colour outside [0, 65535], stay min–max scaled.
-/// Every case reads back within half a level.
+/// A synthesis that leaves the photo's range by a little (a roller's healed tiles read
+/// up to 259.3 on GIMP's 8-bit rain, which was written as 16-bit levels: black) keeps
+/// the 8-bit scale, clamped. Every case reads back within half a level of the clamped
+/// value.
 #[test]
 fn colour_pngs_keep_their_levels_and_heights_are_stretched() {
-    use surftile::io::colour_full_scale;
+    use surftile::io::{COLOUR_OVERSHOOT, colour_full_scale};
     let above = |v: f32| f32::from_bits(v.to_bits() + 1);
+    let over = |full: f32| above(full * (1.0 + COLOUR_OVERSHOOT));
     assert_eq!(colour_full_scale(3, 0.0, above(255.0)), Some(255.0));
-    assert_eq!(colour_full_scale(3, 0.0, 255.1), Some(65535.0));
+    assert_eq!(colour_full_scale(3, 0.0, 259.3), Some(255.0));
+    assert_eq!(colour_full_scale(3, 0.0, 255.0 * 1.05), Some(255.0));
+    assert_eq!(colour_full_scale(3, 0.0, over(255.0)), Some(65535.0));
     assert_eq!(colour_full_scale(3, 0.0, above(1.0)), Some(1.0));
-    assert_eq!(colour_full_scale(3, -0.5, 200.0), None);
-    assert_eq!(colour_full_scale(3, 0.0, 70000.0), None);
+    assert_eq!(colour_full_scale(3, 0.0, over(1.0)), Some(255.0));
+    assert_eq!(colour_full_scale(3, -0.5, 200.0), Some(255.0));
+    assert_eq!(colour_full_scale(3, -20.0, 200.0), Some(65535.0));
+    assert_eq!(colour_full_scale(3, -4000.0, 200.0), None);
+    assert_eq!(colour_full_scale(3, 0.0, over(65535.0)), None);
+    assert_eq!(colour_full_scale(3, f32::NAN, 200.0), None);
     assert_eq!(colour_full_scale(1, 0.0, 200.0), None);
     let dir = tempfile::tempdir().unwrap();
     let pale: Vec<f32> = (0..24).map(|i| 199.0 + 2.25 * i as f32).collect(); // 199 … 250.75
@@ -71,6 +81,8 @@ fn colour_pngs_keep_their_levels_and_heights_are_stretched() {
         ("rgb8.png", 3, 1.0f32, Some(255.0f32)),
         // Blending two 255s in f32 can give 255.00002: still the 8-bit scale.
         ("overshoot.png", 3, 255.00002 / 250.75, Some(255.0)),
+        // A roller's healed tiles on GIMP's rain: up to 259.3, still the 8-bit scale.
+        ("healed.png", 3, 259.3 / 250.75, Some(255.0)),
         ("unit.png", 3, 1.0 / 255.0, Some(1.0)),
         ("rgb16.png", 3, 257.0, Some(65535.0)),
         ("wide.png", 3, 300.0, None),

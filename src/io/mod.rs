@@ -174,9 +174,10 @@ pub struct WriteMeta {
     /// The unit the raster's heights are in (X3P converts them to metres; PNG and TIFF
     /// record it).
     pub unit: Unit,
-    /// A photo's full scale ([`photo_full_scale`]): a one-channel 16-bit PNG maps
-    /// [0, full] to its levels, as colour does, where every sample lies in it (within
-    /// [`COLOUR_OVERSHOOT`]); None: heights, min–max scaled.
+    /// A photo's full scale ([`photo_full_scale`]): a 16-bit PNG, grey or colour, maps
+    /// [0, full] to its levels where every sample lies in it (within
+    /// [`COLOUR_OVERSHOOT`], clamped), and is min–max scaled otherwise; None: heights
+    /// min–max scaled, colour by [`colour_full_scale`].
     pub levels: Option<f32>,
 }
 
@@ -488,18 +489,25 @@ pub fn read_image_bytes(
 /// The full scale of a colour raster's levels: 1 (unit colour, as float images hold
 /// it), 255 (an 8-bit photo's levels, as the PNG reader gives them) or 65535 (16-bit),
 /// the smallest that holds every sample of [lo, hi] to within [`COLOUR_OVERSHOOT`]
-/// (blending two 255s in f32 can give 255.00002); none for heights (not three
-/// channels) or colour outside [0, 65535]. A 16-bit PNG maps [0, full] to its levels
-/// (the overshoot clamped), and the viewer shows [0, full] as black to full intensity,
-/// so a synthesis of a photo shows the photo's colours.
+/// ([`holds_levels`]); none for heights (not three channels) or colour outside
+/// [0, 65535] by more than that. A 16-bit PNG maps [0, full] to its levels (the
+/// overshoot clamped), and the viewer shows [0, full] as black to full intensity, so a
+/// synthesis of a photo shows the photo's colours.
 pub fn colour_full_scale(channels: usize, lo: f32, hi: f32) -> Option<f32> {
-    let tolerance = 1.0 + COLOUR_OVERSHOOT;
-    if channels != 3 || lo.is_nan() || lo < -COLOUR_OVERSHOOT {
+    if channels != 3 {
         return None;
     }
     [1.0f32, 255.0, 65535.0]
         .into_iter()
-        .find(|&full| hi as f64 <= full as f64 * tolerance as f64)
+        .find(|&full| holds_levels(lo, hi, full))
+}
+
+/// Whether samples in [lo, hi] are levels of full scale `full`: within [0, full] but
+/// for [`COLOUR_OVERSHOOT`] of it either side (false for NaN).
+pub fn holds_levels(lo: f32, hi: f32, full: f32) -> bool {
+    let (lo, hi, full) = (lo as f64, hi as f64, full as f64);
+    let tolerance = COLOUR_OVERSHOOT as f64 * full;
+    lo >= -tolerance && hi <= full + tolerance
 }
 
 /// Whether an exemplar as read (before preprocessing) is a photo rather than a height
@@ -536,8 +544,13 @@ pub fn photo_full_scale(raw: &Raster) -> Option<f32> {
     }
 }
 
-/// Relative overshoot of a colour's full scale that [`colour_full_scale`] tolerates.
-pub const COLOUR_OVERSHOOT: f32 = 1e-4;
+/// Relative overshoot of a photo's full scale that [`holds_levels`] tolerates, either
+/// side. Blending two 255s in f32 can give 255.00002, and a synthesis may leave its
+/// exemplar's range by a little: the gradient-domain healing of a roller's tiles
+/// ([`crate::analysis::heal`]) reads 121–259 on GIMP's 8-bit `rain` pattern. Such a
+/// render keeps the photo's scale, the overshoot clamped; with the old bound of 1e-4
+/// it was taken for 16-bit colour and written black.
+pub const COLOUR_OVERSHOOT: f32 = 0.05;
 
 /// Writes heights (or colours) to `path` in the format its extension names: 16-bit PNG,
 /// 32-bit float TIFF, float32 `.npy` or X3P, with square pixels `spacing_um` apart and

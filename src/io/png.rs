@@ -110,19 +110,22 @@ fn read_scaled(bytes: &[u8], what: &str, unit: bool) -> Result<ImageFile> {
 /// samples. Colour (three channels) keeps its levels where it can, so that a synthesis
 /// of a photo looks like the photo in any viewer: [0, full] maps to [0, 65535] with full
 /// the smallest of 1, 255 and 65535 that holds every sample ([`super::colour_full_scale`]);
-/// colour outside [0, 65535] is min–max scaled like heights. A grey photo's synthesis
-/// (`meta.levels`, [`super::photo_full_scale`]) keeps its levels like colour, where
-/// every sample lies in [0, full].
+/// colour outside [0, 65535] is min–max scaled like heights. A photo's synthesis whose
+/// bank records the photo's scale (`meta.levels`, [`super::photo_full_scale`]), grey
+/// or colour, keeps those levels where every sample lies in [0, full] (within
+/// [`super::COLOUR_OVERSHOOT`], clamped), and is min–max scaled otherwise.
 pub(super) fn write16(w: &mut impl Write, raster: &Raster, meta: &super::WriteMeta) -> Result<()> {
     let (lo, hi) = raster
         .data
         .iter()
         .fold((f32::MAX, f32::MIN), |(l, u), &v| (l.min(v), u.max(v)));
-    let grey_levels = meta.levels.filter(|&full| {
-        let tolerance = super::COLOUR_OVERSHOOT * full;
-        raster.channels == 1 && lo >= -tolerance && hi <= full + tolerance
-    });
-    match grey_levels.or_else(|| super::colour_full_scale(raster.channels, lo, hi)) {
+    // A photo's recorded scale decides where it is known; colour of unknown source is
+    // read from its range.
+    let full = match meta.levels {
+        Some(full) => Some(full).filter(|&full| super::holds_levels(lo, hi, full)),
+        None => super::colour_full_scale(raster.channels, lo, hi),
+    };
+    match full {
         Some(full) => write16_in(w, raster, meta, 0.0, full),
         None => write16_in(w, raster, meta, lo, hi),
     }
