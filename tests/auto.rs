@@ -156,3 +156,20 @@ fn a_lattice_picks_roller_or_rsgf() {
     );
     assert!(c.reason.contains("lattice"), "{}", c.reason);
 }
+
+/// Stripes repeat across their lay, so the autocorrelation at the repeat the detector
+/// reports is a repeat's. GIMP's rain (slanted streaks, nothing repeating across them)
+/// and its parquet (a weave whose period is half its side, beyond the lags searched)
+/// each have one strong maximum on no ridge. They were reported as "stripes repeating"
+/// at autocorrelation −0.23 and 0.12 and baked as rollers, which turned the parquet's
+/// weave into horizontal bands. A lone maximum is neither a lattice nor stripes.
+#[test]
+fn a_lone_repeat_is_not_stripes() {
+    for rel in ["tests/data/gimp-rain.png", "tests/data/gimp-parque3.png"] {
+        let (method, reason, _) = choice(rel);
+        assert!(
+            method != Method::Roller && !reason.contains("stripes"),
+            "{rel}: {method:?}: {reason}"
+        );
+    }
+}
