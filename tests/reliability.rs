@@ -317,6 +317,55 @@ fn absurd_exemplar_values_are_refused_as_the_exemplars_fault() {
     assert!(e.starts_with("huge.npy") && e.contains("1e30"), "{e}");
 }
 
+/// A constant exemplar has nothing to synthesise: GIMP's `Stripes1px` pattern holds its
+/// stripes in the alpha channel over black, and baked, with `auto` reporting coherence
+/// "NaN", into a black bank. Every method now refuses a constant exemplar in one line,
+/// naming the file and the value; an image that varies in one channel only still bakes.
+#[test]
+fn a_constant_exemplar_is_refused() {
+    let rgba: Vec<u8> = (0..48 * 48)
+        .flat_map(|i| [0, 0, 0, if i % 4 < 2 { 255 } else { 0 }])
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("alpha-stripes.png");
+    let mut encoder = png::Encoder::new(std::fs::File::create(&png).unwrap(), 48, 48);
+    encoder.set_color(png::ColorType::Rgba);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder
+        .write_header()
+        .unwrap()
+        .write_image_data(&rgba)
+        .unwrap();
+    for method in [Method::Auto, Method::Rpn, Method::Roller, Method::Synth] {
+        let image = read_image(&png, &ReadOptions::default()).unwrap();
+        let e = Baker::builder()
+            .method(method)
+            .build()
+            .unwrap()
+            .bake(&image, "alpha-stripes.png", &mut |_| {})
+            .unwrap_err();
+        let e = one_line(e);
+        assert!(
+            e.starts_with("alpha-stripes.png: every pixel is the same (0, 0, 0)"),
+            "{method:?}: {e}"
+        );
+    }
+    let mut one_channel = vec![0.0f32; 48 * 48 * 3];
+    for (i, px) in one_channel.chunks_exact_mut(3).enumerate() {
+        px[2] = ((i * 37) % 251) as f32;
+    }
+    let image = surftile::io::ImageFile::new(
+        surftile::Raster::from_vec(48, 48, 3, one_channel).unwrap(),
+        None,
+    );
+    Baker::builder()
+        .method(Method::Rpn)
+        .build()
+        .unwrap()
+        .bake(&image, "blue.png", &mut |_| {})
+        .unwrap();
+}
+
 /// Finding 11 (absurd values): every real parameter of a model, milling or imperfection
 /// file is bounded (`surftile::error::MAX_PARAMETER`, 10³⁰, or tighter where the model
 /// needs it), so a file with 10³⁰⁰ in it is refused by name instead of sampling ±inf.

@@ -454,6 +454,16 @@ impl Baker {
                 ),
             });
         }
+        if let Some(value) = constant_pixel(&raster) {
+            let value: Vec<String> = value.iter().map(|v| format!("{v}")).collect();
+            return Err(Error::Analysis {
+                what: source.to_string(),
+                message: format!(
+                    "every pixel is the same ({}), so there is no texture to synthesise; expected an exemplar that varies (an image whose pattern is in its alpha channel, which is not read, reads so)",
+                    value.join(", ")
+                ),
+            });
+        }
         Ok((raster, spacing))
     }
 
@@ -1012,6 +1022,15 @@ pub(crate) fn exemplar_info(ex: &Raster, raw: &Raster, source: &str) -> Exemplar
         levels: crate::io::photo_full_scale(raw)
             .filter(|&full| ex.data.iter().all(|&v| (0.0..=full).contains(&v))),
     }
+}
+
+/// The one pixel value of a raster whose pixels are all equal, bit for bit (none
+/// otherwise, or for an empty raster).
+fn constant_pixel(r: &Raster) -> Option<&[f32]> {
+    let mut px = r.data.chunks_exact(r.channels.max(1));
+    let first = px.next()?;
+    px.all(|p| p.iter().zip(first).all(|(a, b)| a.to_bits() == b.to_bits()))
+        .then_some(first)
 }
 
 fn mean_of(v: &[f64]) -> f64 {
