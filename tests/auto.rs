@@ -173,3 +173,49 @@ fn a_lone_repeat_is_not_stripes() {
         );
     }
 }
+
+/// A strong lattice the roller cannot bake: u = (42, 42), v = (−42, 42) in 100 × 100
+/// pixels (detected as (42, 43), (−42, 43) on the levelled map), whose tile with its
+/// overlap needs more than the exemplar (99 × 102). `auto` picked the roller and the
+/// bake failed, telling the user to give a smaller tile for a method they never chose.
+/// It now goes on as for an exemplar without a lattice, and says so.
+#[test]
+fn a_lattice_the_roller_cannot_fit_falls_back_to_a_stochastic_method() {
+    let (w, h) = (100usize, 100usize);
+    // Exactly periodic on the lattice: harmonics of a = (x + y)/84, b = (y − x)/84.
+    let harmonics = [
+        (1, 0, 0.3),
+        (0, 1, 1.1),
+        (1, 1, 2.0),
+        (2, -1, 0.7),
+        (1, 2, 2.9),
+    ];
+    let data: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let (a, b) = ((x + y) / 84.0, (y - x) / 84.0);
+            harmonics
+                .iter()
+                .map(|&(m, n, phase)| {
+                    (std::f64::consts::TAU * (m as f64 * a + n as f64 * b) + phase).cos()
+                })
+                .sum::<f64>() as f32
+        })
+        .collect();
+    let image = surftile::io::ImageFile::new(Raster::from_vec(w, h, 1, data).unwrap(), None);
+    let baker = Baker::builder().method(Method::Auto).build().unwrap();
+    let choice = baker.choose_method(&image, "oblique").unwrap();
+    assert_eq!(choice.method, Method::Roller, "{}", choice.reason);
+    let mut lines = Vec::new();
+    let bank = baker
+        .bake(&image, "oblique", &mut |l| lines.push(l.to_string()))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_ne!(bank.header.method, Method::Roller);
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("auto: roller cannot bake the lattice")
+                && l.contains("the exemplar has 100×100")),
+        "{lines:#?}"
+    );
+}

@@ -5,7 +5,9 @@
 //!    goes to the roller, whose double-toroidal tiles repeat it exactly; a weaker,
 //!    near-regular one to RSGF (seed 002), which samples and fills it. Stripes (a lay
 //!    repeating across, not along) go to the roller, which pairs them with a stochastic
-//!    side.
+//!    side. Where the method picked cannot bake the lattice (a strong oblique lattice
+//!    whose tile and overlap need more than the exemplar: (42, 42), (−42, 42) in
+//!    100 × 100 pixels), `Baker::bake` says so and goes on with [`choose_stochastic`].
 //! 2. **Stochastic**: how much structure random phases destroy. Objects with edges
 //!    (stones, blades, cracks, bricks) make the height or grey-level differences of
 //!    neighbouring pixels heavy-tailed: most are small, a few at the edges are large.
@@ -118,66 +120,71 @@ pub fn choose_method(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
                 "stripes repeating every {u:?} (autocorrelation {strength:.2}): roller"
             ),
         },
-        Detection::Stochastic => {
-            let ratio = edge_ratio(ex, seed);
-            let rsgf = RsgfParams::stochastic();
-            let patch = rsgf.block_px + 2 * rsgf.border_px;
-            // A whole patch must fit, although reflected edges would let a block alone
-            // do: fewer than 2·o + 1 positions per axis repeat too often.
-            let rsgf_fits =
-                patch <= ex.width.min(ex.height) && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS;
-            let structured = |why: String| {
-                if rsgf_fits {
-                    AutoChoice {
-                        method: Method::Rsgf,
-                        stochastic: true,
-                        reason: format!(
-                            "{why}: rsgf `stochastic` (patches copied whole, joined along minimum-error cuts)"
-                        ),
-                    }
-                } else {
-                    AutoChoice {
-                        method: Method::Synth,
-                        stochastic: false,
-                        reason: format!(
-                            "{why}, and no room for rsgf's {patch}-px patches in {}×{}: synth",
-                            ex.width, ex.height
-                        ),
-                    }
-                }
-            };
-            if ratio > EDGE_RATIO {
-                return structured(format!(
-                    "stochastic with objects whose edges random phases destroy (edge ratio {ratio:.2} > {EDGE_RATIO})"
-                ));
+        Detection::Stochastic => choose_stochastic(ex, seed, photo),
+    }
+}
+
+/// The choice for an exemplar without a lattice (rules 2 and 3 of the module notes):
+/// also where the method picked for a detected lattice cannot bake it (a strong oblique
+/// lattice whose tile and overlap need more than the exemplar; see
+/// [`crate::bake::Baker::bake`]).
+pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
+    let ratio = edge_ratio(ex, seed);
+    let rsgf = RsgfParams::stochastic();
+    let patch = rsgf.block_px + 2 * rsgf.border_px;
+    // A whole patch must fit, although reflected edges would let a block alone
+    // do: fewer than 2·o + 1 positions per axis repeat too often.
+    let rsgf_fits = patch <= ex.width.min(ex.height) && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS;
+    let structured = |why: String| {
+        if rsgf_fits {
+            AutoChoice {
+                method: Method::Rsgf,
+                stochastic: true,
+                reason: format!(
+                    "{why}: rsgf `stochastic` (patches copied whole, joined along minimum-error cuts)"
+                ),
             }
-            let gaussian = format!(
-                "stochastic and Gaussian-like: random phases keep its edges (edge ratio {ratio:.2} ≤ {EDGE_RATIO})"
-            );
-            if !photo {
-                return AutoChoice {
-                    method: Method::Rpn,
-                    stochastic: false,
-                    reason: format!("{gaussian}: rpn"),
-                };
-            }
-            let name = if rsgf_fits { "rsgf" } else { "synth" };
-            match trial_coherence(ex, seed, rsgf_fits) {
-                Some((rpn, other)) if rpn <= other => AutoChoice {
-                    method: Method::Rpn,
-                    stochastic: false,
-                    reason: format!(
-                        "{gaussian}, a photo, and random phases as coherent as {name} in a trial (coherence {rpn:.2} ≤ {other:.2}): rpn"
-                    ),
-                },
-                Some((rpn, other)) => structured(format!(
-                    "{gaussian}, but a photo whose objects random phases lose: coherence of a trial {other:.2} with {name} against {rpn:.2} with rpn"
-                )),
-                None => structured(format!(
-                    "{gaussian}, but a photo, and the coherence trial could not run"
-                )),
+        } else {
+            AutoChoice {
+                method: Method::Synth,
+                stochastic: false,
+                reason: format!(
+                    "{why}, and no room for rsgf's {patch}-px patches in {}×{}: synth",
+                    ex.width, ex.height
+                ),
             }
         }
+    };
+    if ratio > EDGE_RATIO {
+        return structured(format!(
+            "stochastic with objects whose edges random phases destroy (edge ratio {ratio:.2} > {EDGE_RATIO})"
+        ));
+    }
+    let gaussian = format!(
+        "stochastic and Gaussian-like: random phases keep its edges (edge ratio {ratio:.2} ≤ {EDGE_RATIO})"
+    );
+    if !photo {
+        return AutoChoice {
+            method: Method::Rpn,
+            stochastic: false,
+            reason: format!("{gaussian}: rpn"),
+        };
+    }
+    let name = if rsgf_fits { "rsgf" } else { "synth" };
+    match trial_coherence(ex, seed, rsgf_fits) {
+        Some((rpn, other)) if rpn <= other => AutoChoice {
+            method: Method::Rpn,
+            stochastic: false,
+            reason: format!(
+                "{gaussian}, a photo, and random phases as coherent as {name} in a trial (coherence {rpn:.2} ≤ {other:.2}): rpn"
+            ),
+        },
+        Some((rpn, other)) => structured(format!(
+            "{gaussian}, but a photo whose objects random phases lose: coherence of a trial {other:.2} with {name} against {rpn:.2} with rpn"
+        )),
+        None => structured(format!(
+            "{gaussian}, but a photo, and the coherence trial could not run"
+        )),
     }
 }
 

@@ -516,6 +516,22 @@ impl Baker {
         Ok(crate::bake::auto::choose_method(&ex, self.seed, photo))
     }
 
+    /// Bakes `image` with the method `auto` picked.
+    fn bake_choice(
+        &self,
+        choice: &crate::bake::auto::AutoChoice,
+        image: &ImageFile,
+        source: &str,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Bank> {
+        let mut baker = Baker {
+            method: choice.method,
+            ..self.clone()
+        };
+        baker.rsgf.stochastic |= choice.stochastic;
+        baker.bake(image, source, progress)
+    }
+
     /// Bakes a blend bank from `image`. `source` names it in errors and in the bank;
     /// `progress` receives one line per step.
     pub fn bake(
@@ -552,12 +568,26 @@ impl Baker {
             Method::Auto => {
                 let choice = self.choose_method(image, source)?;
                 progress(&format!("auto: {}", choice.reason));
-                let mut baker = Baker {
-                    method: choice.method,
-                    ..self.clone()
+                let on_lattice = choice.method == Method::Roller
+                    || (choice.method == Method::Rsgf && !choice.stochastic);
+                return match self.bake_choice(&choice, image, source, progress) {
+                    // A lattice the picked method cannot bake (a strong oblique one whose
+                    // tile and overlap need more than the exemplar, or whose cell the
+                    // exemplar does not show whole) is not the user's fault: `auto`
+                    // goes on as for an exemplar without one, and says so.
+                    Err(e) if on_lattice => {
+                        let (ex, _) = self.preprocess(image, source)?;
+                        let photo = crate::bake::auto::is_photo(&image.raster);
+                        let instead = crate::bake::auto::choose_stochastic(&ex, self.seed, photo);
+                        progress(&format!(
+                            "auto: {} cannot bake the lattice ({e}); taken as stochastic instead: {}",
+                            format!("{:?}", choice.method).to_lowercase(),
+                            instead.reason
+                        ));
+                        self.bake_choice(&instead, image, source, progress)
+                    }
+                    baked => baked,
                 };
-                baker.rsgf.stochastic |= choice.stochastic;
-                return baker.bake(image, source, progress);
             }
             Method::Rpn | Method::Adsn => {}
         }

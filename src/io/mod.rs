@@ -547,7 +547,7 @@ pub fn photo_full_scale(raw: &Raster) -> Option<f32> {
 /// Relative overshoot of a photo's full scale that [`holds_levels`] tolerates, either
 /// side. Blending two 255s in f32 can give 255.00002, and a synthesis may leave its
 /// exemplar's range by a little: the gradient-domain healing of a roller's tiles
-/// ([`crate::analysis::heal`]) reads 121–259 on GIMP's 8-bit `rain` pattern. Such a
+/// (`analysis::heal`) reads 121–259 on GIMP's 8-bit `rain` pattern. Such a
 /// render keeps the photo's scale, the overshoot clamped; with the old bound of 1e-4
 /// it was taken for 16-bit colour and written black.
 pub const COLOUR_OVERSHOOT: f32 = 0.05;
