@@ -705,7 +705,7 @@ fn main() -> ExitCode {
 }
 
 /// The library's parameter names, as its messages quote them, and this CLI's flags.
-const FLAGS: [(&str, &str); 31] = [
+const FLAGS: [(&str, &str); 32] = [
     ("fill_missing", "--fill-missing"),
     ("stochastic", "--stochastic"),
     ("lattice", "--lattice"),
@@ -730,6 +730,7 @@ const FLAGS: [(&str, &str); 31] = [
     ("match_histogram", "--match-histogram"),
     ("edges", "--edges"),
     ("levels", "--levels"),
+    ("level", "--level"),
     ("k", "--k"),
     ("passes", "--passes"),
     ("fine_passes", "--fine-passes"),

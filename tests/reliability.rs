@@ -346,7 +346,7 @@ fn a_constant_exemplar_is_refused() {
             .unwrap_err();
         let e = one_line(e);
         assert!(
-            e.starts_with("alpha-stripes.png: every pixel is the same (0, 0, 0)"),
+            e.starts_with("alpha-stripes.png: every pixel is the same (0, 0, 0) as prepared"),
             "{method:?}: {e}"
         );
     }

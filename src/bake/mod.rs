@@ -459,7 +459,7 @@ impl Baker {
             return Err(Error::Analysis {
                 what: source.to_string(),
                 message: format!(
-                    "every pixel is the same ({}), so there is no texture to synthesise; expected an exemplar that varies (an image whose pattern is in its alpha channel, which is not read, reads so)",
+                    "every pixel is the same ({}) as prepared (after `level`), so there is no texture to synthesise; expected an exemplar that varies (a plane levels to one value; a pattern drawn in the alpha channel, which is not read, reads as one colour)",
                     value.join(", ")
                 ),
             });
