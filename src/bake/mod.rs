@@ -581,8 +581,7 @@ impl Baker {
                         let instead = crate::bake::auto::choose_stochastic(&ex, self.seed, photo);
                         progress(&format!(
                             "auto: {} cannot bake the lattice ({e}); taken as stochastic instead: {}",
-                            format!("{:?}", choice.method).to_lowercase(),
-                            instead.reason
+                            choice.method, instead.reason
                         ));
                         self.bake_choice(&instead, image, source, progress)
                     }
