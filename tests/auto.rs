@@ -219,3 +219,53 @@ fn a_lattice_the_roller_cannot_fit_falls_back_to_a_stochastic_method() {
         "{lines:#?}"
     );
 }
+
+/// Stripes whose period is half the exemplar: GIMP's 20 × 20 `warning` pattern, two
+/// yellow and two black bands along x + y. The lag search stopped short of half the
+/// side, so `auto` saw no repeat and gave rpn, which turns the bands into yellow and
+/// black noise. It now finds the stripes and the roller keeps them: every rendered
+/// pixel is one of the two colours, within the 8 levels (3%) by which the photo's
+/// degree-2 flat field moves a pattern of two periods, and the render stays within
+/// the exemplar's range. (With a 2 px overlap the
+/// roller's extra tiles had no room for their border cut, and healing gave −121 to 314.)
+#[test]
+fn stripes_of_half_the_side_go_to_the_roller_and_keep_their_two_colours() {
+    let (w, h) = (20usize, 20usize);
+    let data: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            let on = (x + y + 1) % 20 >= 10;
+            if on { [255.0, 255.0, 0.0] } else { [0.0; 3] }
+        })
+        .collect();
+    let image = surftile::io::ImageFile::new(Raster::from_vec(w, h, 3, data).unwrap(), None);
+    let baker = Baker::builder().method(Method::Auto).build().unwrap();
+    let mut lines = Vec::new();
+    let bank = baker
+        .bake(&image, "warning", &mut |l| lines.push(l.to_string()))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(bank.header.method, Method::Roller, "{lines:#?}");
+    assert!(lines.iter().any(|l| l.contains("stripes")), "{lines:#?}");
+    let s = surftile::kinds::open(&bank, 0).unwrap();
+    for x0 in [0.0, -1e9] {
+        let r = surftile::stream::Region::new(x0, 7.0, 96, 96);
+        let mut v = vec![0.0f32; r.len() * 3];
+        s.fill(&r, &mut v).unwrap();
+        let (lo, hi) = v
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        assert!(lo >= -1.0 && hi <= 256.0, "x0 {x0}: range {lo}..{hi}");
+        let two_coloured = v
+            .chunks_exact(3)
+            .filter(|p| p[2].abs() <= 1.0 && (p[0] - p[1]).abs() <= 1.0)
+            .filter(|p| p[0] <= 8.0 || p[0] >= 247.0)
+            .count();
+        assert_eq!(two_coloured, r.len(), "x0 {x0}");
+        // Both colours, in about equal shares.
+        let yellow = v.chunks_exact(3).filter(|p| p[0] >= 247.0).count();
+        assert!(
+            (yellow as f64 / r.len() as f64 - 0.5).abs() < 0.1,
+            "x0 {x0}: {yellow}"
+        );
+    }
+}

@@ -96,7 +96,7 @@ pub fn detect(image: &Raster) -> Detection {
     let mut maxima: Vec<((i64, i64), f64)> = Vec::new();
     for dy in 0..=hy {
         for dx in -hx..=hx {
-            if (dy == 0 && dx <= 1) || dx.abs() == hx || dy == hy {
+            if dy == 0 && dx <= 1 {
                 continue;
             }
             let value = at(dx, dy);
@@ -120,10 +120,13 @@ pub fn detect(image: &Raster) -> Detection {
     let Some(&(u, su)) = strong.first() else {
         return Detection::Stochastic;
     };
-    // The ACF at any lag, by symmetry, and 0 outside the searched window.
+    // The ACF at any lag, by symmetry, and 0 beyond three quarters of the image, where
+    // too few pairs overlap to measure it (a repeat at half the side is checked for a
+    // peak a quarter of its length beyond it).
+    let (qx, qy) = (3 * grey.width as i64 / 4, 3 * grey.height as i64 / 4);
     let at_any = |dx: i64, dy: i64| {
         let (dx, dy) = if dy < 0 { (-dx, -dy) } else { (dx, dy) };
-        if dx.abs() >= hx || dy >= hy {
+        if dx.abs() > qx || dy > qy {
             0.0
         } else {
             at(dx, dy)

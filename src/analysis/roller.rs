@@ -516,6 +516,18 @@ pub fn roller_tiles(
         // T₀'s outer border and any arrangement stays seamless.
         let band = ov;
         let keep = phase_margin(band) + 2;
+        // A tile's own interior meets T₀'s kept band along a cut inside the band; a band
+        // no wider than what is kept leaves no room for one, and the interior would meet
+        // T₀ wherever the rhomboid happens to end (healing then overshoots: 20-px warning
+        // stripes on a 2 px overlap gave −121 to 314 on a 0–255 photo).
+        if band <= keep {
+            return Err(Error::TooSmall {
+                what: "lattice".into(),
+                message: format!(
+                    "{n_tiles} tiles need an overlap wider than the {keep} px of the first tile's border every tile keeps, for the cut around each interior; {what} leaves no room (ask for 1 tile, or a larger `tile` or `lattice`)"
+                ),
+            });
+        }
         let (bu, bv) = (band as f64 / wu, band as f64 / wv);
         let (kx, ky) = origin_range(&img, f.bbox((0.0, 1.0), (0.0, 1.0)), &what)?;
         let ring: Vec<((i64, i64), f64, f64)> = f
@@ -1010,5 +1022,24 @@ pub(crate) mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("at least 1 tile"), "{e}");
+    }
+
+    /// A rhomboid 5 px wide gets a 1 px overlap: no room, beyond the border band every
+    /// tile keeps of T₀, for the cut around a further tile's interior. Several tiles are
+    /// refused with a reason (a bake without `tiles` then makes one); one tile bakes.
+    #[test]
+    fn several_tiles_need_room_for_their_border_cut() {
+        let ex = noise(64, 64, 5);
+        let lattice = Lattice::rectangular(20, 5).unwrap();
+        let Err(e) = roller_tiles(&ex, lattice, 2, None, &mut |_| {}) else {
+            panic!("2 tiles on a 1 px overlap baked");
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains("2 tiles need an overlap wider") && e.contains("1 tile"),
+            "{e}"
+        );
+        let one = roller_tiles(&ex, lattice, 1, None, &mut |_| {}).unwrap();
+        assert_eq!(one.tiles.len(), 1);
     }
 }
