@@ -269,3 +269,30 @@ fn stripes_of_half_the_side_go_to_the_roller_and_keep_their_two_colours() {
         );
     }
 }
+
+/// Courses of stone blocks that repeat exactly every 128 px down and not across
+/// (Extreme Tux Racer's `pave02`): stripes on (0, 128). The lay measured from the
+/// autocorrelation's central peak leans 1.6° with the blocks' shapes, and a stochastic
+/// side along it, (−146, 4), stepped the courses 4 px at every cut. The side is taken
+/// along the axis where the exemplar continues itself better there, so the lattice is
+/// rectangular and the courses run straight.
+#[test]
+fn stripes_on_an_axis_keep_their_courses_straight() {
+    let rel = "tests/data/etr-pave02.png";
+    let image = read_image(rel.as_ref(), &ReadOptions::default()).unwrap();
+    let mut lines = Vec::new();
+    let bank = Baker::builder()
+        .method(Method::Auto)
+        .build()
+        .unwrap()
+        .bake(&image, rel, &mut |l| lines.push(l.to_string()))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(bank.header.method, Method::Roller, "{lines:#?}");
+    let [u, v] = bank.header.lattice;
+    let vertical = |p: [f64; 2]| p[0] == 0.0;
+    let horizontal = |p: [f64; 2]| p[1] == 0.0;
+    assert!(
+        (vertical(u) && horizontal(v)) || (horizontal(u) && vertical(v)),
+        "lattice {u:?}, {v:?}: {lines:#?}"
+    );
+}
