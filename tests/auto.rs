@@ -224,9 +224,11 @@ fn a_lattice_the_roller_cannot_fit_falls_back_to_a_stochastic_method() {
 /// yellow and two black bands along x + y. The lag search stopped short of half the
 /// side, so `auto` saw no repeat and gave rpn, which turns the bands into yellow and
 /// black noise. It now finds the stripes and the roller keeps them: every rendered
-/// pixel is one of the two colours, within the 8 levels (3%) by which the photo's
-/// degree-2 flat field moves a pattern of two periods, and the render stays within
-/// the exemplar's range. (With a 2 px overlap the roller's extra tiles had no room for
+/// pixel is one of the two colours, within 8 levels (3%: the photo's degree-2 flat
+/// field moved the pattern by that much before it kept tiling axes, which this
+/// pattern has both of), and the render stays within the exemplar's range. (A flat
+/// field with products of the two axes' first harmonics took half the stripes'
+/// fundamental for light, and `auto` then saw no stripes.) (With a 2 px overlap the roller's extra tiles had no room for
 /// their border cut, and healing gave −121 to 314.)
 #[test]
 fn stripes_of_half_the_side_go_to_the_roller_and_keep_their_two_colours() {
