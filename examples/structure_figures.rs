@@ -10,7 +10,8 @@
 //! Images (PNG) are compared as they are; height maps (`.npy`) plane-levelled.
 //! texture-synthesis reads 8-bit images, so it gets the exemplar normalised to 0–255 and
 //! its output is mapped back to the exemplar's unit. Prints one line per exemplar and
-//! method; with `--out-dir`, writes each output as an 8-bit PNG to look at.
+//! method; with `--out-dir`, writes each output as an 8-bit PNG to look at, and the exemplar as
+//! both methods got it (`NAME-exemplar.png`, flat-fielded, on the outputs' scale).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -28,7 +29,7 @@ use surftile::raster::Raster;
 use surftile::stats::structure::{
     DEFAULT_SEAM_CELL, SEAM_BAR, SEAM_NOISE_DRAWS, seam_any_phase, seam_noise, structure,
 };
-use surftile::stats::{psd_error, wasserstein1_standardised};
+use surftile::stats::{psd_error, psd_error_even, wasserstein1_standardised};
 use surftile::stream::{Region, Surface};
 use texture_synthesis as ts;
 
@@ -203,6 +204,8 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
         format!("bake {baked:.2} s + fill {filled:.2} s"),
     );
     save(args, &name, &args.method, &ex, &synth)?;
+    // The exemplar as both methods got it (flat-fielded, levelled), on the same scale.
+    save(args, &name, "exemplar", &ex, &ex)?;
     if !args.no_embark {
         let (lo, hi) = ex
             .data
@@ -253,11 +256,12 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
 /// Worst per-channel W1, PSD error and |σ ratio − 1|, and the structure figures.
 fn report(name: &str, method: &str, ex: &Raster, out: &Raster, cells: &[usize], time: String) {
     let s = structure(ex, out, None);
-    let (mut w1, mut psd, mut sd) = (0.0f64, 0.0f64, 1.0f64);
+    let (mut w1, mut psd, mut psd_even, mut sd) = (0.0f64, 0.0f64, 0.0f64, 1.0f64);
     for k in 0..ex.channels.min(out.channels) {
         let (a, b) = (ex.channel(k), out.channel(k));
         w1 = w1.max(wasserstein1_standardised(&a, &b));
         psd = psd.max(psd_error(&a, &b));
+        psd_even = psd_even.max(psd_error_even(&a));
         let sd_of = |r: &Raster| {
             let m = r.data.iter().map(|&v| v as f64).sum::<f64>() / r.data.len() as f64;
             (r.data.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / r.data.len() as f64)
@@ -289,7 +293,7 @@ fn report(name: &str, method: &str, ex: &Raster, out: &Raster, cells: &[usize], 
         .collect();
     let floor = seam_noise(out, &searched, SEAM_NOISE_DRAWS, 1, SEAM_BAR);
     println!(
-        "{name:<24} {method:<18} coherence {:.3}  completeness {:.3}  self-rep {:.3}  copy {:.3}  seam {:.3}{seam_at} [no grid: median {:.3}, {:.0}% in bar, p {:.2}]  W1 {:.3}  PSD {:.3}  sd {:.3}  {time}",
+        "{name:<24} {method:<18} coherence {:.3}  completeness {:.3}  self-rep {:.3}  copy {:.3}  seam {:.3}{seam_at} [no grid: median {:.3}, {:.0}% in bar, p {:.2}]  W1 {:.3}  PSD {:.3} [exemplar shown evenly {:.3}]  sd {:.3}  {time}",
         s.coherence,
         s.completeness,
         s.self_repetition,
@@ -300,6 +304,7 @@ fn report(name: &str, method: &str, ex: &Raster, out: &Raster, cells: &[usize], 
         floor.p_value,
         w1,
         psd,
+        psd_even,
         sd
     );
 }
@@ -329,7 +334,12 @@ fn save(
                 .clamp(0.0, 255.0) as u8
         })
         .collect();
-    let file = std::fs::File::create(dir.join(format!("{name}-{method}-{}.png", out.width)))?;
+    let path = dir.join(if method == "exemplar" {
+        format!("{name}-exemplar.png")
+    } else {
+        format!("{name}-{method}-{}.png", out.width)
+    });
+    let file = std::fs::File::create(path)?;
     let mut enc = png::Encoder::new(
         std::io::BufWriter::new(file),
         out.width as u32,

@@ -581,7 +581,8 @@ enum Command {
         #[arg(long)]
         raw_shape: Option<String>,
         /// Skip the patch figures (coherence, completeness, self-repetition, copy
-        /// score, seams at any phase), which are computed over every channel.
+        /// score, seams at any phase), which are computed over every channel, on A's
+        /// central 512² and B's top-left 1024² at most.
         #[arg(long)]
         no_structure: bool,
     },
@@ -1848,6 +1849,21 @@ fn run(command: Command) -> Result<()> {
                     structure: !no_structure,
                 },
             )?;
+            let sizes = |r: &surftile::Raster| (r.width, r.height);
+            if let Some(regions) = figures
+                .structure_regions
+                .filter(|r| r.cropped(sizes(&image_a.raster), sizes(&image_b.raster)))
+            {
+                eprintln!(
+                    "stats: patch figures on A's central {}×{} and B's top-left {}×{} (at most {}² and {}²: their searches grow faster than both maps' pixels; --no-structure skips them)",
+                    regions.a[2],
+                    regions.a[3],
+                    regions.b[2],
+                    regions.b[3],
+                    surftile::stats::STRUCTURE_SIDE_A,
+                    surftile::stats::STRUCTURE_SIDE_B,
+                );
+            }
             let mut report = serde_json::to_value(&figures)
                 .map_err(|e| Error::decode("stats", e.to_string()))?;
             report["operators"] = serde_json::to_value(operators)

@@ -407,6 +407,11 @@ fn bake_info_render_sample_and_stats_work_together() {
     for key in ["median", "in_bar", "p_value"] {
         assert!(floor[key].as_f64().is_some(), "{key} missing in {floor}");
     }
+    // Beside the PSD error, what the exemplar's own content reads shown evenly.
+    assert!(
+        stats["psd_error_even"].as_f64().is_some_and(|e| e >= 0.0),
+        "{stats}"
+    );
 
     // Inputs the figures cannot be measured on: one clear line each, no JSON.
     let raster = |w: usize, h: usize, f: fn(usize) -> f32| {
@@ -1405,12 +1410,60 @@ fn x3p_outputs_read_back_as_exemplars() {
     assert!(xml.contains("render parallel-d4-ae05"), "{xml}");
     let r = surftile(dir.path(), &["stats", "h.x3p", "h.npy", "--no-structure"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
+    // The figures that come with the patch figures stay out of the JSON without them.
+    let stats: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert!(stats["structure"].is_null() && stats["psd_error_even"].is_null());
     let r = surftile(
         dir.path(),
         &["bake", "h.x3p", "--method", "rpn", "--out", "h.bank"],
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(dir.path().join("h.bank").exists());
+}
+
+/// `surftile stats` measures the patch figures on bounded regions (their searches grow
+/// faster than both maps' pixels: two 4096² maps took more than 9 minutes): an A wider
+/// than 512 px gives its central 512 columns, B its top-left corner, the JSON names both
+/// regions and stderr says so in one line. Maps within the bounds are measured whole and
+/// nothing is said.
+#[test]
+fn stats_bounds_the_patch_figures_and_says_where_it_measured() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = |w: usize, h: usize| {
+        Raster::from_vec(
+            w,
+            h,
+            1,
+            (0..w * h)
+                .map(|i| ((i % w) as f32 * 0.37).sin() + ((i / w) as f32 * 0.23).cos())
+                .collect(),
+        )
+        .unwrap()
+    };
+    write_heights(&dir.path().join("wide.npy"), &map(530, 24), None).unwrap();
+    write_heights(&dir.path().join("small.npy"), &map(64, 64), None).unwrap();
+    let r = surftile(dir.path(), &["stats", "wide.npy", "small.npy"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let stats: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(
+        stats["structure_regions"],
+        serde_json::json!({"a": [9, 0, 512, 24], "b": [0, 0, 64, 64]}),
+        "{stats}"
+    );
+    assert!(
+        stats["structure"]["coherence"].as_f64().is_some(),
+        "{stats}"
+    );
+    assert_eq!(r.stderr.lines().count(), 1, "{}", r.stderr);
+    assert!(r.stderr.contains("A's central 512×24"), "{}", r.stderr);
+    let r = surftile(dir.path(), &["stats", "small.npy", "small.npy"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let stats: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(
+        stats["structure_regions"],
+        serde_json::json!({"a": [0, 0, 64, 64], "b": [0, 0, 64, 64]})
+    );
+    assert!(r.stderr.is_empty(), "{}", r.stderr);
 }
 
 /// `surftile convert` (issue 36): an instrument file to X3P and npy keeps heights,

@@ -64,6 +64,10 @@ pub struct Comparison {
     pub w1: f64,
     /// RMS over radial bins of log10 P_B − log10 P_A (0 = same spectrum).
     pub psd_error: f64,
+    /// What the PSD error reads for A's own content shown evenly ([`psd_error_even`]):
+    /// where B misses a PSD bar by no more, the miss is A's. With the patch figures.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub psd_error_even: Option<f64>,
     /// Seam score of B on square cells of `cell` px (1.0 = invisible seams), if asked.
     pub seam_score: Option<f64>,
     /// The cell size the seam score used.
@@ -71,6 +75,45 @@ pub struct Comparison {
     /// Patch figures over every channel ([`structure::structure`]), when computed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub structure: Option<StructureFigures>,
+    /// The regions of A and B the patch figures were measured on, when computed
+    /// ([`STRUCTURE_SIDE_A`], [`STRUCTURE_SIDE_B`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub structure_regions: Option<StructureRegions>,
+}
+
+/// The largest side of A that [`compare_maps`] measures the patch figures on: a larger
+/// A gives its central square of this side. Their nearest-neighbour searches grow faster
+/// than the product of both maps' pixels (two 512² fractal maps took 7 s on 2 cores, two
+/// 1024² maps 84 s, two 4096² maps more than 9 minutes); 512² of A against 1024² of B
+/// took 25 s. [`structure::structure`] itself takes whole maps.
+pub const STRUCTURE_SIDE_A: usize = 512;
+/// The largest side of B that [`compare_maps`] measures the patch figures on: a larger
+/// B gives its top-left square of this side, so the seams' offsets keep B's phase.
+pub const STRUCTURE_SIDE_B: usize = 1024;
+
+/// Where the patch figures were measured: `[x, y, width, height]` in A and in B.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct StructureRegions {
+    /// The region of A.
+    pub a: [usize; 4],
+    /// The region of B.
+    pub b: [usize; 4],
+}
+
+impl StructureRegions {
+    /// The regions [`compare_maps`] takes in maps of these sizes.
+    pub fn of(a: (usize, usize), b: (usize, usize)) -> StructureRegions {
+        let (wa, ha) = (a.0.min(STRUCTURE_SIDE_A), a.1.min(STRUCTURE_SIDE_A));
+        StructureRegions {
+            a: [(a.0 - wa) / 2, (a.1 - ha) / 2, wa, ha],
+            b: [0, 0, b.0.min(STRUCTURE_SIDE_B), b.1.min(STRUCTURE_SIDE_B)],
+        }
+    }
+
+    /// Whether either map is measured on less than its whole.
+    pub fn cropped(&self, a: (usize, usize), b: (usize, usize)) -> bool {
+        (self.a[2], self.a[3]) != a || (self.b[2], self.b[3]) != b
+    }
 }
 
 /// The operators that made a scale-limited surface (ISO 25178-3), as `surftile stats`
@@ -183,7 +226,16 @@ pub fn compare_maps(
                 ),
             ));
         }
-        figures.structure = Some(structure::structure(&full_a, &full_b, options.cell));
+        let regions =
+            StructureRegions::of((full_a.width, full_a.height), (full_b.width, full_b.height));
+        let crop = |r: &Raster, [x, y, w, h]: [usize; 4]| r.crop(x, y, w, h);
+        figures.structure = Some(structure::structure(
+            &crop(&full_a, regions.a)?,
+            &crop(&full_b, regions.b)?,
+            options.cell,
+        ));
+        figures.structure_regions = Some(regions);
+        figures.psd_error_even = Some(psd_error_even(&ra));
     }
     Ok(figures)
 }
@@ -234,9 +286,11 @@ pub fn compare(a: &Raster, b: &Raster, cell: Option<usize>) -> Comparison {
         b: height_stats(b),
         w1: wasserstein1_standardised(a, b),
         psd_error: psd_error(a, b),
+        psd_error_even: None,
         seam_score: cell.map(|n| seam_score(b, n)),
         cell,
         structure: None,
+        structure_regions: None,
     }
 }
 
@@ -526,6 +580,21 @@ fn window_starts(len: usize, n: usize, per_axis: usize) -> Vec<usize> {
 /// Returns the mean power per integer radius 0..=n/2 and the number of frequencies per
 /// radius in one window.
 fn radial_psd(r: &Raster, n: usize, per_axis: usize) -> (Vec<f64>, Vec<usize>) {
+    let xs = window_starts(r.width, n, per_axis);
+    let corners: Vec<(usize, usize)> = window_starts(r.height, n, per_axis)
+        .into_iter()
+        .flat_map(|wy| xs.iter().map(move |&wx| (wx, wy)))
+        .collect();
+    radial_psd_at(n, &corners, |x, y| r.get(x, y, 0) as f64)
+}
+
+/// [`radial_psd`] over the `n × n` windows whose top-left corners are `corners`, of the
+/// plane whose value at (x, y) is `value(x, y)`.
+fn radial_psd_at(
+    n: usize,
+    corners: &[(usize, usize)],
+    value: impl Fn(usize, usize) -> f64,
+) -> (Vec<f64>, Vec<usize>) {
     let hann: Vec<f64> = (0..n).map(|i| crate::fft::hann(i, n)).collect();
     // Half spectra (real FFTs): each column that stands for its mirror image too counts
     // twice. Each frequency's radius bin and weight, once for every window.
@@ -551,36 +620,33 @@ fn radial_psd(r: &Raster, n: usize, per_axis: usize) -> (Vec<f64>, Vec<usize>) {
             count[bin as usize] += copies(i % hw);
         }
     }
-    let mut windows = 0;
-    let xs = window_starts(r.width, n, per_axis);
-    for &wy in &window_starts(r.height, n, per_axis) {
-        for &wx in &xs {
-            windows += 1;
-            let spec = plan.forward(&tapered_window(r, (wx, wy), &hann));
-            for (row, bins) in spec.chunks_exact(hw).zip(bin_of.chunks_exact(hw)) {
-                for (kx, (s, &bin)) in row.iter().zip(bins).enumerate() {
-                    if bin != u32::MAX {
-                        power[bin as usize] += copies(kx) as f64 * s.norm_sqr();
-                    }
+    for &corner in corners {
+        let spec = plan.forward(&tapered_window(&value, corner, &hann));
+        for (row, bins) in spec.chunks_exact(hw).zip(bin_of.chunks_exact(hw)) {
+            for (kx, (s, &bin)) in row.iter().zip(bins).enumerate() {
+                if bin != u32::MAX {
+                    power[bin as usize] += copies(kx) as f64 * s.norm_sqr();
                 }
             }
         }
     }
     for (p, &c) in power.iter_mut().zip(&count) {
         if c > 0 {
-            *p /= (c * windows.max(1)) as f64;
+            *p /= (c * corners.len().max(1)) as f64;
         }
     }
     (power, count)
 }
 
-/// Window (wx, wy) of `r`'s grid of `n × n` windows (n = `hann.len()`), its mean
+/// The `n × n` window (n = `hann.len()`) at `(x0, y0)` of the plane `value`, its mean
 /// removed and tapered by the separable window `hann`.
-fn tapered_window(r: &Raster, (x0, y0): (usize, usize), hann: &[f64]) -> Vec<f64> {
+fn tapered_window(
+    value: impl Fn(usize, usize) -> f64,
+    (x0, y0): (usize, usize),
+    hann: &[f64],
+) -> Vec<f64> {
     let n = hann.len();
-    let mut win: Vec<f64> = (0..n * n)
-        .map(|i| r.get(x0 + i % n, y0 + i / n, 0) as f64)
-        .collect();
+    let mut win: Vec<f64> = (0..n * n).map(|i| value(x0 + i % n, y0 + i / n)).collect();
     let m = win.iter().sum::<f64>() / (n * n) as f64;
     for (i, v) in win.iter_mut().enumerate() {
         *v = (*v - m) * hann[i % n] * hann[i / n];
@@ -694,6 +760,72 @@ pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
     }
     let (pa, counts) = radial_psd(a, n, 8);
     let (pb, _) = radial_psd(b, n, 8);
+    let sum =
+        |p: &[f64]| -> Vec<f64> { p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect() };
+    log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
+}
+
+/// Placements per axis of the windows [`psd_error_even`] lays over an exemplar's period
+/// whose shorter side is at most [`EVEN_FULL_SIDE`]: as many as [`psd_error`] takes at
+/// most (16 read the same to 0.001 on the photos of docs/structure.md).
+const EVEN_PLACEMENTS: usize = 8;
+/// Above this shorter side, [`psd_error_even`] takes 4 × 4 placements, so that a 4096²
+/// map costs it 16 FFTs of 4096² (13 s on 2 cores; 8 × 8 took 44 s). On the photos of
+/// docs/structure.md 4 × 4 reads within 0.014 of 8 × 8, and mostly within 0.004.
+const EVEN_FULL_SIDE: usize = 512;
+
+/// The PSD error ([`psd_error`], channel 0) that the exemplar's own content reads
+/// against the exemplar when every part of it is shown equally often: what an exact,
+/// even reproduction of `exemplar` would read.
+///
+/// [`psd_error`] estimates the exemplar's spectrum on its own windows, of its shorter
+/// side (the synthesis's side where that is shorter). An exemplar no larger than one
+/// window has one, and the Hann taper weighs its middle: where the middle is smoother or
+/// rougher than the edges, a synthesis that shows the edges as often as the middle
+/// differs from that estimate however faithful it is. Here windows of the exemplar's
+/// shorter side lie at 8 × 8 evenly spaced offsets (4 × 4 over [`EVEN_FULL_SIDE`] px)
+/// over the exemplar's period: its torus along an axis where it tiles
+/// ([`crate::prep::level::tiles_along`]), the exemplar and its mirror image along the
+/// others, so that no window crosses a jump. Their mean spectrum is compared with the
+/// exemplar's estimate. Where a synthesis misses the PSD
+/// bar by no more than this figure reads, the miss is the exemplar's. It is not a lower
+/// bound: a synthesis that shows the exemplar's middle more often than its edges reads
+/// less. NaN under 8 px a side.
+pub fn psd_error_even(exemplar: &Raster) -> f64 {
+    let (w, h) = (exemplar.width, exemplar.height);
+    let n = w.min(h);
+    if n < 8 {
+        return f64::NAN;
+    }
+    let (pa, counts) = radial_psd(exemplar, n, EVEN_PLACEMENTS);
+    let tiles = |axis: usize| crate::prep::level::tiles_along(exemplar, axis);
+    // The period along an axis: the side where it tiles, else the side and its mirror.
+    let (px, py) = (
+        if tiles(0) { w } else { 2 * w },
+        if tiles(1) { h } else { 2 * h },
+    );
+    // Sample i of a period p over a side of len: wrapped, then mirrored past the side.
+    let at = |i: usize, len: usize, p: usize| {
+        let m = i % p;
+        if m < len { m } else { p - 1 - m }
+    };
+    let per_axis = if n <= EVEN_FULL_SIDE {
+        EVEN_PLACEMENTS
+    } else {
+        EVEN_PLACEMENTS / 2
+    };
+    let offsets = |p: usize| -> Vec<usize> {
+        let k = per_axis.min(p);
+        (0..k).map(|i| i * p / k).collect()
+    };
+    let xs = offsets(px);
+    let corners: Vec<(usize, usize)> = offsets(py)
+        .into_iter()
+        .flat_map(|y| xs.iter().map(move |&x| (x, y)))
+        .collect();
+    let (pb, _) = radial_psd_at(n, &corners, |x, y| {
+        exemplar.get(at(x, w, px), at(y, h, py), 0) as f64
+    });
     let sum =
         |p: &[f64]| -> Vec<f64> { p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect() };
     log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
@@ -1025,6 +1157,121 @@ mod tests {
         assert!(window_starts(79, 80, 8).is_empty());
     }
 
+    /// Uniform noise in [−1, 1] at each pixel (pcg4d), times `gain(x, y)`.
+    fn noise(w: usize, h: usize, gain: impl Fn(usize, usize) -> f64) -> Raster {
+        raster(w, h, |x, y| {
+            let u = crate::hash::pcg4d([x as u32, y as u32, 7, 11])[0];
+            gain(x, y) * (u as f64 / u32::MAX as f64 * 2.0 - 1.0)
+        })
+    }
+
+    /// A 128² exemplar of white noise 3 times as strong outside its middle square as in
+    /// it. The one Hann window psd_error takes on it weighs the middle; shown evenly, the
+    /// exemplar holds its mean power, in every radial bin alike (white noise), so
+    /// psd_error_even reads log10 of the mean power over the taper-weighted power,
+    /// predicted here from the taper alone (0.510; it reads 0.524). The exemplar tiled to
+    /// 512², an exact and even reproduction, reads about as much in psd_error (0.480); the
+    /// same noise at one strength reads under 0.08 in both (0.058, 0.043).
+    #[test]
+    fn psd_error_even_reads_an_exemplars_uneven_middle() {
+        let n = 128;
+        let middle = |i: usize| (n / 4..3 * n / 4).contains(&i);
+        let power = |x: usize, y: usize| if middle(x) && middle(y) { 1.0f64 } else { 9.0 };
+        let uneven = noise(n, n, |x, y| power(x, y).sqrt());
+        let hann: Vec<f64> = (0..n).map(|i| crate::fft::hann(i, n).powi(2)).collect();
+        let (mut weighted, mut weights, mut mean) = (0.0, 0.0, 0.0);
+        for y in 0..n {
+            for x in 0..n {
+                weighted += hann[x] * hann[y] * power(x, y);
+                weights += hann[x] * hann[y];
+                mean += power(x, y) / (n * n) as f64;
+            }
+        }
+        let predicted = (mean / (weighted / weights)).log10();
+        assert!(
+            predicted > 0.25,
+            "the test's exemplar should be uneven: {predicted}"
+        );
+        let even = psd_error_even(&uneven);
+        assert!(
+            (even - predicted).abs() < 0.05,
+            "{even} against {predicted}"
+        );
+        let tiled = |r: &Raster| raster(512, 512, |x, y| r.get(x % n, y % n, 0) as f64);
+        let exact = psd_error(&uneven, &tiled(&uneven));
+        // psd_error takes its 8 × 8 windows at offsets that do not spread as evenly.
+        assert!((exact - even).abs() < 0.08, "tiled {exact}, even {even}");
+        let uniform = noise(n, n, |_, _| 1.0);
+        let (even, exact) = (
+            psd_error_even(&uniform),
+            psd_error(&uniform, &tiled(&uniform)),
+        );
+        assert!(even < 0.08 && exact < 0.08, "{even}, {exact}");
+        assert!(psd_error_even(&raster(7, 40, |x, y| (x * y) as f64)).is_nan());
+    }
+
+    /// psd_error_even against a slow twin that builds the period as a raster (the
+    /// exemplar and its mirror images side by side along an axis that does not tile),
+    /// repeats it 2 × 2 and crops every window, for an exemplar that tiles both ways, one
+    /// that tiles along x alone, and one that tiles along neither.
+    #[test]
+    fn psd_error_even_is_its_windows_over_the_built_period() {
+        use crate::prep::level::tiles_along;
+        let tau = std::f64::consts::TAU;
+        let periodic = |x: usize, y: usize, w: usize, h: usize| {
+            (tau * 3.0 * x as f64 / w as f64).sin() * (tau * 2.0 * y as f64 / h as f64).cos()
+                + 0.5 * (tau * (5.0 * x as f64 / w as f64 + 4.0 * y as f64 / h as f64)).cos()
+        };
+        let cases = [
+            (raster(48, 40, |x, y| periodic(x, y, 48, 40)), [true, true]),
+            (
+                raster(48, 40, |x, y| periodic(x, y, 48, 40) + 0.05 * y as f64),
+                [true, false],
+            ),
+            (
+                raster(48, 40, |x, y| {
+                    periodic(x, y, 48, 40) + 0.04 * x as f64 - 0.05 * y as f64
+                }),
+                [false, false],
+            ),
+        ];
+        for (ex, tiles) in cases {
+            assert_eq!([tiles_along(&ex, 0), tiles_along(&ex, 1)], tiles);
+            let (w, h) = (ex.width, ex.height);
+            let pw = if tiles[0] { w } else { 2 * w };
+            let ph = if tiles[1] { h } else { 2 * h };
+            let mut period = vec![0.0f64; pw * ph];
+            for y in 0..ph {
+                for x in 0..pw {
+                    let sx = if x < w { x } else { 2 * w - 1 - x };
+                    let sy = if y < h { y } else { 2 * h - 1 - y };
+                    period[y * pw + x] = ex.get(sx, sy, 0) as f64;
+                }
+            }
+            let repeated = raster(2 * pw, 2 * ph, |x, y| period[(y % ph) * pw + x % pw]);
+            let n = w.min(h);
+            let (pa, counts) = radial_psd(&ex, n, 8);
+            let mut pb = vec![0.0; pa.len()];
+            for i in 0..8 {
+                for j in 0..8 {
+                    let window = repeated.crop(j * pw / 8, i * ph / 8, n, n).unwrap();
+                    for (b, p) in pb.iter_mut().zip(radial_psd(&window, n, 1).0) {
+                        *b += p / 64.0;
+                    }
+                }
+            }
+            let sum = |p: &[f64]| -> Vec<f64> {
+                p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect()
+            };
+            let twin = log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts);
+            let fast = psd_error_even(&ex);
+            assert!(
+                (fast - twin).abs() < 1e-9 && twin > 0.0,
+                "{tiles:?}: {fast} against {twin}"
+            );
+        }
+    }
+
     /// radial_psd through half spectra against a slow twin that bins every frequency of
     /// a full complex spectrum, for even and odd window sides and several windows.
     #[test]
@@ -1045,7 +1292,10 @@ mod tests {
             for &wy in &window_starts(r.height, n, 8) {
                 for &wx in &window_starts(r.width, n, 8) {
                     windows += 1;
-                    let spec = forward_real(&mut plan, &tapered_window(&r, (wx, wy), &hann));
+                    let spec = forward_real(
+                        &mut plan,
+                        &tapered_window(|x, y| r.get(x, y, 0) as f64, (wx, wy), &hann),
+                    );
                     for ky in 0..n {
                         for kx in 0..n {
                             let rad = signed_frequency(kx, n).hypot(signed_frequency(ky, n));
