@@ -10,8 +10,9 @@
 //! Images (PNG) are compared as they are; height maps (`.npy`) plane-levelled.
 //! texture-synthesis reads 8-bit images, so it gets the exemplar normalised to 0–255 and
 //! its output is mapped back to the exemplar's unit. Prints one line per exemplar and
-//! method; with `--out-dir`, writes each output as an 8-bit PNG to look at, and the exemplar as
-//! both methods got it (`NAME-exemplar.png`, flat-fielded, on the outputs' scale).
+//! method; with `--out-dir`, writes each output as an 8-bit PNG to look at, and the
+//! exemplar as both methods got it (`NAME-exemplar.png`, flat-fielded, on the outputs'
+//! scale).
 
 use std::path::PathBuf;
 use std::time::Instant;
