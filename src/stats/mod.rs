@@ -760,9 +760,7 @@ pub fn psd_error(a: &Raster, b: &Raster) -> f64 {
     }
     let (pa, counts) = radial_psd(a, n, 8);
     let (pb, _) = radial_psd(b, n, 8);
-    let sum =
-        |p: &[f64]| -> Vec<f64> { p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect() };
-    log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
+    log_rms_of_mean_spectra(&pa, &pb, &counts)
 }
 
 /// Placements per axis of the windows [`psd_error_even`] lays over an exemplar's period
@@ -787,10 +785,10 @@ const EVEN_FULL_SIDE: usize = 512;
 /// over the exemplar's period: its torus along an axis where it tiles
 /// ([`crate::prep::level::tiles_along`]), the exemplar and its mirror image along the
 /// others, so that no window crosses a jump. Their mean spectrum is compared with the
-/// exemplar's estimate. Where a synthesis misses the PSD
-/// bar by no more than this figure reads, the miss is the exemplar's. It is not a lower
-/// bound: a synthesis that shows the exemplar's middle more often than its edges reads
-/// less. NaN under 8 px a side.
+/// exemplar's estimate. Where a synthesis misses the PSD bar by no more than this
+/// figure reads, the miss is the exemplar's. It is not a lower bound: a synthesis that
+/// shows the exemplar's middle more often than its edges reads less. NaN under 8 px a
+/// side.
 pub fn psd_error_even(exemplar: &Raster) -> f64 {
     let (w, h) = (exemplar.width, exemplar.height);
     let n = w.min(h);
@@ -826,9 +824,7 @@ pub fn psd_error_even(exemplar: &Raster) -> f64 {
     let (pb, _) = radial_psd_at(n, &corners, |x, y| {
         exemplar.get(at(x, w, px), at(y, h, py), 0) as f64
     });
-    let sum =
-        |p: &[f64]| -> Vec<f64> { p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect() };
-    log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts)
+    log_rms_of_mean_spectra(&pa, &pb, &counts)
 }
 
 /// The PSD error's comparison of a periodic spectrum `b` with a target modulus `a`, both
@@ -857,6 +853,14 @@ pub fn spectrum_log_error(a: &[f64], b: &[Complex64], w: usize, h: usize) -> f64
         }
     }
     log_rms_over_merged_bins(&sa, &sb, &counts)
+}
+
+/// [`log_rms_over_merged_bins`] from per-bin mean powers (as [`radial_psd`] gives them)
+/// and the bins' sample counts.
+fn log_rms_of_mean_spectra(mean_a: &[f64], mean_b: &[f64], counts: &[usize]) -> f64 {
+    let sum =
+        |p: &[f64]| -> Vec<f64> { p.iter().zip(counts).map(|(p, &c)| p * c as f64).collect() };
+    log_rms_over_merged_bins(&sum(mean_a), &sum(mean_b), counts)
 }
 
 /// RMS over radial bins of log10 B − log10 A, from per-bin power sums, low-frequency
@@ -1260,10 +1264,7 @@ mod tests {
                     }
                 }
             }
-            let sum = |p: &[f64]| -> Vec<f64> {
-                p.iter().zip(&counts).map(|(p, &c)| p * c as f64).collect()
-            };
-            let twin = log_rms_over_merged_bins(&sum(&pa), &sum(&pb), &counts);
+            let twin = log_rms_of_mean_spectra(&pa, &pb, &counts);
             let fast = psd_error_even(&ex);
             assert!(
                 (fast - twin).abs() < 1e-9 && twin > 0.0,
