@@ -21,7 +21,8 @@
 //!    best of all methods. Photos of objects lose their edges: 1.42–2.72 on the seven
 //!    test photos. Above [`EDGE_RATIO`], RSGF in stochastic mode is taken (every
 //!    exemplar position a candidate, gaps matched by NCC, blocks joined along
-//!    minimum-error cuts), or `synth` where the exemplar cannot hold an RSGF patch.
+//!    minimum-error cuts; a small exemplar repeated, rule 4), or `synth` where the exemplar
+//!    is over RSGF's size.
 //! 3. **Photos under the bar.** The edge ratio does not see fine, sparse objects: the
 //!    bright scratches of a photo of ice read 1.24, slate 0.98, wood and walnut photos
 //!    1.14–1.24 (GIMP patterns outside the structure figures' seven), against 1.06–1.22
@@ -36,6 +37,20 @@
 //!    2026-11-27), so none gets rpn. The trial runs on the centred
 //!    256² crop, so it costs about a second on any photo (a 1024² one: 1.8 s for the
 //!    whole bake, 0.55 s of it RSGF's own).
+//!
+//! 4. **Too small for RSGF's patch** (60 px with its defaults): the exemplar is repeated
+//!    as a torus until a patch can start at every phase of it ([`torus_repeats`]), and
+//!    RSGF bakes from that. Such exemplars are mostly patterns made to tile (GIMP's
+//!    25–64-px patterns; a tiling pattern is one period of itself), and many do not
+//!    pass [`crate::prep::level::tiles_along`]: a designed edge often runs along the
+//!    wrap (GIMP's `bluegrid` jumps 20 times as much there as between any two
+//!    neighbouring columns inside it). Synth, which such exemplars got until 2026-11-29,
+//!    turned their motifs into a jumble: on the 15 GIMP patterns under 60 px, RSGF on
+//!    the torus read coherence 0.27–0.52 where synth read 0.46–0.89 (and 0.72 against
+//!    0.59 on `bluegrid`, whose synth output is noise by eye), completeness 0.00–0.05
+//!    against 0.16–1.01 (512², `surftile stats`; docs/structure.md, "Small
+//!    exemplars repeat as a torus"). Mirroring instead of repeating turned cubes and
+//!    squares into mirror images, and 50-px photo crops into kaleidoscopes.
 //!
 //! **Why RSGF rather than synth for structured stochastic exemplars.** Both stream in
 //! any split; both copy exemplar pieces. On the seven test photos at 1024² (same run,
@@ -87,6 +102,9 @@ pub struct AutoChoice {
     pub stochastic: bool,
     /// One line: the reason and its figures.
     pub reason: String,
+    /// Copies of the exemplar along x and y that the method bakes from: `[1, 1]` but
+    /// where the exemplar is too small for RSGF's patch ([`torus_repeats`]).
+    pub repeat: [usize; 2],
 }
 
 pub use crate::io::is_photo;
@@ -100,6 +118,7 @@ pub fn choose_method(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
         Detection::Lattice(p) if p.strength >= STRONG_LATTICE => AutoChoice {
             method: Method::Roller,
             stochastic: false,
+            repeat: [1, 1],
             reason: format!(
                 "a lattice u = {:?}, v = {:?} repeats strongly (autocorrelation {:.2} ≥ {STRONG_LATTICE}): roller",
                 p.u, p.v, p.strength
@@ -108,6 +127,7 @@ pub fn choose_method(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
         Detection::Lattice(p) => AutoChoice {
             method: Method::Rsgf,
             stochastic: false,
+            repeat: [1, 1],
             reason: format!(
                 "a near-regular lattice u = {:?}, v = {:?} (autocorrelation {:.2} < {STRONG_LATTICE}): rsgf",
                 p.u, p.v, p.strength
@@ -116,6 +136,7 @@ pub fn choose_method(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
         Detection::Stripes { u, strength, .. } => AutoChoice {
             method: Method::Roller,
             stochastic: false,
+            repeat: [1, 1],
             reason: format!(
                 "stripes repeating every {u:?} (autocorrelation {strength:.2}): roller"
             ),
@@ -132,26 +153,38 @@ pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
     let ratio = edge_ratio(ex, seed);
     let rsgf = RsgfParams::stochastic();
     let patch = rsgf.block_px + 2 * rsgf.border_px;
-    // A whole patch must fit, although reflected edges would let a block alone
-    // do: fewer than 2·o + 1 positions per axis repeat too often.
-    let rsgf_fits = patch <= ex.width.min(ex.height) && ex.width * ex.height <= MAX_EXEMPLAR_PIXELS;
+    let (w, h) = (ex.width, ex.height);
+    // A whole patch must fit, although reflected edges would let a block alone do:
+    // fewer than 2·o + 1 positions per axis repeat too often. An exemplar too small for
+    // one is repeated as a torus (rule 4 of the module notes).
+    let repeat = torus_repeats(w, h, patch, rsgf.block_px + 4 * rsgf.border_px);
+    let rsgf_fits = w * repeat[0] * h * repeat[1] <= MAX_EXEMPLAR_PIXELS;
+    let torus = (rsgf_fits && repeat != [1, 1]).then(|| repeat_torus(ex, repeat));
     let structured = |why: String| {
-        if rsgf_fits {
-            AutoChoice {
-                method: Method::Rsgf,
-                stochastic: true,
-                reason: format!(
-                    "{why}: rsgf `stochastic` (patches copied whole, joined along minimum-error cuts)"
-                ),
-            }
-        } else {
+        if !rsgf_fits {
             AutoChoice {
                 method: Method::Synth,
                 stochastic: false,
+                repeat: [1, 1],
                 reason: format!(
-                    "{why}, and no room for rsgf's {patch}-px patches in {}×{}: synth",
-                    ex.width, ex.height
+                    "{why}, and {w}×{h} is over rsgf's {MAX_EXEMPLAR_PIXELS} pixels: synth"
                 ),
+            }
+        } else {
+            let copied = "patches copied whole, joined along minimum-error cuts";
+            let reason = if repeat == [1, 1] {
+                format!("{why}: rsgf `stochastic` ({copied})")
+            } else {
+                format!(
+                    "{why}, and {w}×{h} holds no {patch}-px patch of rsgf: rsgf `stochastic` on it repeated {} × {} as a torus ({copied}; a tiling pattern is one period of itself)",
+                    repeat[0], repeat[1]
+                )
+            };
+            AutoChoice {
+                method: Method::Rsgf,
+                stochastic: true,
+                repeat,
+                reason,
             }
         }
     };
@@ -167,14 +200,17 @@ pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
         return AutoChoice {
             method: Method::Rpn,
             stochastic: false,
+            repeat: [1, 1],
             reason: format!("{gaussian}: rpn"),
         };
     }
     let name = if rsgf_fits { "rsgf" } else { "synth" };
-    match trial_coherence(ex, seed, rsgf_fits) {
+    let from = rsgf_fits.then(|| torus.as_ref().unwrap_or(ex));
+    match trial_coherence(ex, seed, from) {
         Some((rpn, other)) if rpn <= other => AutoChoice {
             method: Method::Rpn,
             stochastic: false,
+            repeat: [1, 1],
             reason: format!(
                 "{gaussian}, a photo, and random phases as coherent as {name} in a trial (coherence {rpn:.2} ≤ {other:.2}): rpn"
             ),
@@ -188,6 +224,43 @@ pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
     }
 }
 
+/// Copies of a `w × h` exemplar along x and y for RSGF's stochastic patches of `patch`
+/// px, which can wrap around an exemplar of `wrap` px a side (block + 4 borders,
+/// [`crate::models::rsgf::wrap_fits`]): `[1, 1]` where both sides hold a patch; else,
+/// along each side under `wrap`, the fewest k with k·side ≥ `wrap` and
+/// k·side − `patch` + 1 ≥ side, so that the repeats can wrap where the coverage asks it
+/// and a patch can start at every phase of the exemplar (rule 4 of the module notes).
+pub fn torus_repeats(w: usize, h: usize, patch: usize, wrap: usize) -> [usize; 2] {
+    if w.min(h) >= patch || w.min(h) == 0 {
+        return [1, 1];
+    }
+    let copies = |side: usize| {
+        if side >= wrap {
+            1
+        } else {
+            wrap.div_ceil(side).max((patch - 1).div_ceil(side) + 1)
+        }
+    };
+    [copies(w), copies(h)]
+}
+
+/// `ex` repeated `repeat[0]` times along x and `repeat[1]` times along y: its torus
+/// unrolled.
+pub fn repeat_torus(ex: &Raster, repeat: [usize; 2]) -> Raster {
+    let (w, h, c) = (ex.width, ex.height, ex.channels);
+    if w * h * c == 0 {
+        return ex.clone();
+    }
+    let mut out = Raster::zeros(w * repeat[0], h * repeat[1], c);
+    for (y, row) in out.data.chunks_exact_mut(w * repeat[0] * c).enumerate() {
+        let from = &ex.data[(y % h) * w * c..(y % h + 1) * w * c];
+        for copy in row.chunks_exact_mut(w * c) {
+            copy.copy_from_slice(from);
+        }
+    }
+    out
+}
+
 /// Side of the trials of [`trial_coherence`], at most.
 const TRIAL_SIDE: usize = 128;
 
@@ -197,14 +270,16 @@ const TRIAL_SIDE: usize = 128;
 /// realisation of the crop's centre (at most [`TRIAL_SIDE`]², every channel under the
 /// same random phases, each matched back to its histogram) and of a synthesis of the
 /// same size from the crop by the structured method: stochastic RSGF with the
-/// parameters `bake` gives it where `rsgf` (its patches fit), else synth with its
+/// parameters `bake` gives it from `rsgf_from` (the exemplar, or its torus repeated
+/// where it is small: the crop is taken of it as of the exemplar), else synth with its
 /// defaults. `None` if the structured trial cannot run.
-fn trial_coherence(ex: &Raster, seed: u64, rsgf: bool) -> Option<(f64, f64)> {
+fn trial_coherence(ex: &Raster, seed: u64, rsgf_from: Option<&Raster>) -> Option<(f64, f64)> {
     use crate::stats::structure::coherence_completeness;
-    let (cw, ch) = (ex.width.min(TEST_SIDE), ex.height.min(TEST_SIDE));
-    let ex = &ex
-        .crop((ex.width - cw) / 2, (ex.height - ch) / 2, cw, ch)
-        .ok()?;
+    let centred = |r: &Raster| {
+        let (cw, ch) = (r.width.min(TEST_SIDE), r.height.min(TEST_SIDE));
+        r.crop((r.width - cw) / 2, (r.height - ch) / 2, cw, ch).ok()
+    };
+    let ex = &centred(ex)?;
     let (w, h, c) = (
         ex.width.min(TRIAL_SIDE),
         ex.height.min(TRIAL_SIDE),
@@ -227,13 +302,14 @@ fn trial_coherence(ex: &Raster, seed: u64, rsgf: bool) -> Option<(f64, f64)> {
         }
     }
     let rpn = Raster::from_vec(w, h, c, rpn).ok()?;
-    let other = if rsgf {
+    let other = if let Some(from) = rsgf_from {
+        let from = &centred(from)?;
         let options = crate::bake::rsgf::RsgfOptions {
             stochastic: true,
             ..Default::default()
         };
-        let params = options.params_for(ex, (1, 0), (0, 1));
-        crate::models::rsgf::RsgfModel::new(ex, &params)
+        let params = options.params_for(from, (1, 0), (0, 1));
+        crate::models::rsgf::RsgfModel::new(from, &params)
             .ok()?
             .synthesize(seed as u32, w, h)
     } else {

@@ -529,6 +529,17 @@ impl Baker {
             ..self.clone()
         };
         baker.rsgf.stochastic |= choice.stochastic;
+        if choice.repeat != [1, 1] {
+            // Only stochastic RSGF takes a repeated exemplar (`auto::choose_stochastic`).
+            // The image is repeated before it is prepared: a flat field fitted to one
+            // small period takes its motif for light (a 25-px cell's dark square is the
+            // first harmonic of its side), one fitted to the repeats leaves it.
+            let repeated = ImageFile {
+                raster: crate::bake::auto::repeat_torus(&image.raster, choice.repeat),
+                ..image.clone()
+            };
+            return baker.bake(&repeated, source, progress);
+        }
         baker.bake(image, source, progress)
     }
 

@@ -92,8 +92,9 @@ pub enum Method {
     Synth,
     /// Picks one from the exemplar and says why: a lattice → roller or rsgf, a
     /// Gaussian-like height map → rpn, structured stochastic (or a photo that rpn
-    /// scores worse on coherence) → rsgf --stochastic (synth if too small). Bakes only;
-    /// a bank records the method picked.
+    /// scores worse on coherence) → rsgf --stochastic (on its torus repeated where it is
+    /// too small for a patch; synth where it is over rsgf's size). Bakes only; a bank
+    /// records the method picked.
     Auto,
 }
 
