@@ -21,8 +21,8 @@
 //!    best of all methods. Photos of objects lose their edges: 1.42–2.72 on the seven
 //!    test photos. Above [`EDGE_RATIO`], RSGF in stochastic mode is taken (every
 //!    exemplar position a candidate, gaps matched by NCC, blocks joined along
-//!    minimum-error cuts; a small exemplar repeated, rule 4), or `synth` where the exemplar
-//!    is over RSGF's size.
+//!    minimum-error cuts; a small exemplar repeated, rule 4), or `synth` where the
+//!    exemplar is over RSGF's size.
 //! 3. **Photos under the bar.** The edge ratio does not see fine, sparse objects: the
 //!    bright scratches of a photo of ice read 1.24, slate 0.98, wood and walnut photos
 //!    1.14–1.24 (GIMP patterns outside the structure figures' seven), against 1.06–1.22
@@ -46,8 +46,8 @@
 //!    wrap (GIMP's `bluegrid` jumps 20 times as much there as between any two
 //!    neighbouring columns inside it). Synth, which such exemplars got until 2026-11-29,
 //!    turned their motifs into a jumble: on the 15 GIMP patterns under 60 px, RSGF on
-//!    the torus read coherence 0.27–0.52 where synth read 0.46–0.89 (and 0.72 against
-//!    0.59 on `bluegrid`, whose synth output is noise by eye), completeness 0.00–0.05
+//!    the torus read coherence 0.27–0.53 where synth read 0.46–0.89 (but 0.69 against
+//!    0.59 on `bluegrid`, whose synth output is noise by eye), completeness 0.00–0.11
 //!    against 0.16–1.01 (512², `surftile stats`; docs/structure.md, "Small
 //!    exemplars repeat as a torus"). Mirroring instead of repeating turned cubes and
 //!    squares into mirror images, and 50-px photo crops into kaleidoscopes.
