@@ -399,3 +399,54 @@ fn stripes_on_an_axis_keep_their_courses_straight() {
         "lattice {u:?}, {v:?}: {lines:#?}"
     );
 }
+
+/// A small height map is repeated after its form removal, so the plane comes off the
+/// period itself. A 48² map of scattered raised squares (height 10.3 on 0) on a tilt of
+/// 2.05 per pixel: levelled, it spans about 13; its copies levelled together would keep
+/// 8/9 of the tilt in each (a sawtooth spanning about 90). The fill spans no more than
+/// 1.5 times the levelled period. (A photo is flat-fielded after it repeats instead:
+/// see `Baker::preprocess_repeated`.)
+#[test]
+fn a_small_height_map_is_levelled_before_it_repeats() {
+    let n = 48;
+    // Fourteen 4–8-px squares at scattered places (a fixed linear congruential draw).
+    let mut state = 12345u64;
+    let mut draw = |m: usize| {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as usize % m
+    };
+    let squares: Vec<[usize; 3]> = (0..14).map(|_| [draw(n), draw(n), 4 + draw(5)]).collect();
+    let data: Vec<f32> = (0..n * n)
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            let raised = squares
+                .iter()
+                .any(|&[sx, sy, side]| (x + n - sx) % n < side && (y + n - sy) % n < side);
+            // Not whole numbers, so it reads as a height map rather than 8-bit grey.
+            2.05 * x as f32 + if raised { 10.3 } else { 0.0 }
+        })
+        .collect();
+    let image = surftile::io::ImageFile::new(Raster::from_vec(n, n, 1, data).unwrap(), Some(1.0));
+    let auto = Baker::builder().method(Method::Auto).build().unwrap();
+    let choice = auto.choose_method(&image, "squares").unwrap();
+    assert_eq!(choice.repeat, [3, 3], "{}", choice.reason);
+    let (levelled, _) = auto.preprocess(&image, "squares").unwrap();
+    let span = |v: &[f32]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        hi - lo
+    };
+    let bank = auto
+        .bake(&image, "squares", &mut |_| {})
+        .unwrap_or_else(|e| panic!("{e}"));
+    let s = surftile::kinds::open(&bank, 0).unwrap();
+    let r = surftile::stream::Region::new(-1e9, 5.0, 192, 192);
+    let mut v = vec![0.0f32; r.len()];
+    s.fill(&r, &mut v).unwrap();
+    let (fill, period) = (span(&v), span(&levelled.data));
+    println!("fill spans {fill}, the levelled period {period}");
+    assert!(fill <= 1.5 * period, "fill {fill} against {period}");
+}

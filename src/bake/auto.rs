@@ -158,16 +158,21 @@ pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
     // fewer than 2·o + 1 positions per axis repeat too often. An exemplar too small for
     // one is repeated as a torus (rule 4 of the module notes).
     let repeat = torus_repeats(w, h, patch, rsgf.block_px + 4 * rsgf.border_px);
-    let rsgf_fits = w * repeat[0] * h * repeat[1] <= MAX_EXEMPLAR_PIXELS;
-    let torus = (rsgf_fits && repeat != [1, 1]).then(|| repeat_torus(ex, repeat));
+    let (rw, rh) = (w * repeat[0], h * repeat[1]);
+    let rsgf_fits = rw * rh <= MAX_EXEMPLAR_PIXELS;
     let structured = |why: String| {
         if !rsgf_fits {
+            let size = if repeat == [1, 1] {
+                format!("{w}×{h}")
+            } else {
+                format!("{w}×{h}, repeated to hold an rsgf patch, {rw}×{rh}")
+            };
             AutoChoice {
                 method: Method::Synth,
                 stochastic: false,
                 repeat: [1, 1],
                 reason: format!(
-                    "{why}, and {w}×{h} is over rsgf's {MAX_EXEMPLAR_PIXELS} pixels: synth"
+                    "{why}, and {size} is over rsgf's {MAX_EXEMPLAR_PIXELS} pixels: synth"
                 ),
             }
         } else {
@@ -205,6 +210,9 @@ pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
         };
     }
     let name = if rsgf_fits { "rsgf" } else { "synth" };
+    // The trial's RSGF runs on the repeats of the prepared exemplar (the bake flat-fields
+    // the repeats instead: close enough to choose between rpn and RSGF).
+    let torus = (rsgf_fits && repeat != [1, 1]).then(|| repeat_torus(ex, repeat));
     let from = rsgf_fits.then(|| torus.as_ref().unwrap_or(ex));
     match trial_coherence(ex, seed, from) {
         Some((rpn, other)) if rpn <= other => AutoChoice {
@@ -245,10 +253,10 @@ pub fn torus_repeats(w: usize, h: usize, patch: usize, wrap: usize) -> [usize; 2
 }
 
 /// `ex` repeated `repeat[0]` times along x and `repeat[1]` times along y: its torus
-/// unrolled.
+/// unrolled (`ex` itself where a count is 0).
 pub fn repeat_torus(ex: &Raster, repeat: [usize; 2]) -> Raster {
     let (w, h, c) = (ex.width, ex.height, ex.channels);
-    if w * h * c == 0 {
+    if w * h * c * repeat[0] * repeat[1] == 0 {
         return ex.clone();
     }
     let mut out = Raster::zeros(w * repeat[0], h * repeat[1], c);

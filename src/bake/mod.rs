@@ -402,6 +402,21 @@ impl Baker {
     /// filled (or refused), levelled, down-sampled. Returns the raster and its spacing in
     /// µm.
     pub fn preprocess(&self, image: &ImageFile, source: &str) -> Result<(Raster, Option<f64>)> {
+        self.preprocess_repeated(image, source, [1, 1])
+    }
+
+    /// [`Baker::preprocess`], the exemplar repeated `repeat` times along x and y as a
+    /// torus ([`crate::bake::auto::repeat_torus`]) after its form removal and
+    /// down-sampling and before a photo's flat field: a flat field fitted to one small
+    /// period takes its motif for light (a 25-px cell's dark square is the first
+    /// harmonic of its side), one fitted to the repeats leaves it, while a height map's
+    /// plane is taken off the period itself, not off a sawtooth of its copies.
+    fn preprocess_repeated(
+        &self,
+        image: &ImageFile,
+        source: &str,
+        repeat: [usize; 2],
+    ) -> Result<(Raster, Option<f64>)> {
         let mut exemplar = std::borrow::Cow::Borrowed(&image.raster);
         let mut file_spacing = image.spacing_um;
         if let (None, true, Some(dx), Some(dy)) = (
@@ -429,16 +444,6 @@ impl Baker {
             filter: self.filter,
         }
         .apply(&exemplar, source)?;
-        if flat_field {
-            crate::prep::level::flatten_illumination(
-                &mut raster,
-                crate::prep::level::ILLUMINATION_DEGREE,
-            );
-        }
-        let spacing = self
-            .spacing_um
-            .or(file_spacing)
-            .map(|s| s * self.downsample as f64);
         if raster.width < MIN_EXEMPLAR_SIDE || raster.height < MIN_EXEMPLAR_SIDE {
             return Err(Error::TooSmall {
                 what: source.to_string(),
@@ -454,6 +459,19 @@ impl Baker {
                 ),
             });
         }
+        if repeat != [1, 1] {
+            raster = crate::bake::auto::repeat_torus(&raster, repeat);
+        }
+        if flat_field {
+            crate::prep::level::flatten_illumination(
+                &mut raster,
+                crate::prep::level::ILLUMINATION_DEGREE,
+            );
+        }
+        let spacing = self
+            .spacing_um
+            .or(file_spacing)
+            .map(|s| s * self.downsample as f64);
         if let Some(value) = constant_pixel(&raster) {
             let value: Vec<String> = value.iter().map(|v| format!("{v}")).collect();
             return Err(Error::Analysis {
@@ -481,20 +499,30 @@ impl Baker {
         }
     }
 
-    /// The preprocessed exemplar and what every bank header records of it: exemplar
-    /// statistics, spacing, seed and the preprocessing parameters as text.
+    /// The preprocessed exemplar, repeated `repeat` times as a torus
+    /// ([`Baker::preprocess_repeated`]), and what every bank header records of it:
+    /// exemplar statistics (of the repeats, with the size of one period), spacing, seed
+    /// and the preprocessing parameters as text.
     fn preprocess_with_header(
         &self,
         image: &ImageFile,
         source: &str,
+        repeat: [usize; 2],
     ) -> Result<(Raster, HeaderBase)> {
-        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let (ex, spacing_um) = self.preprocess_repeated(image, source, repeat)?;
+        let mut info = exemplar_info(&ex, &image.raster, source);
+        (info.width, info.height) = (ex.width / repeat[0], ex.height / repeat[1]);
+        let repeated = if repeat == [1, 1] {
+            String::new()
+        } else {
+            format!(" repeated={}x{}", repeat[0], repeat[1])
+        };
         let base = (
-            exemplar_info(&ex, &image.raster, source),
+            info,
             spacing_um,
             self.seed,
             format!(
-                "level={} downsample={} filter={:?} fill_missing={}",
+                "level={} downsample={} filter={:?} fill_missing={}{repeated}",
                 self.level_text(&image.raster),
                 self.downsample,
                 self.filter,
@@ -530,15 +558,10 @@ impl Baker {
         };
         baker.rsgf.stochastic |= choice.stochastic;
         if choice.repeat != [1, 1] {
-            // Only stochastic RSGF takes a repeated exemplar (`auto::choose_stochastic`).
-            // The image is repeated before it is prepared: a flat field fitted to one
-            // small period takes its motif for light (a 25-px cell's dark square is the
-            // first harmonic of its side), one fitted to the repeats leaves it.
-            let repeated = ImageFile {
-                raster: crate::bake::auto::repeat_torus(&image.raster, choice.repeat),
-                ..image.clone()
-            };
-            return baker.bake(&repeated, source, progress);
+            // Only stochastic RSGF takes a repeated exemplar (`auto::choose_stochastic`,
+            // which bounded the repeats' size).
+            let (torus, base) = self.preprocess_with_header(image, source, choice.repeat)?;
+            return crate::bake::rsgf::bake(&torus, &baker.rsgf, None, source, base, progress);
         }
         baker.bake(image, source, progress)
     }
@@ -562,7 +585,7 @@ impl Baker {
                 ));
             }
             Method::Rsgf => {
-                let (ex, base) = self.preprocess_with_header(image, source)?;
+                let (ex, base) = self.preprocess_with_header(image, source, [1, 1])?;
                 return crate::bake::rsgf::bake(
                     &ex,
                     &self.rsgf,
@@ -573,7 +596,7 @@ impl Baker {
                 );
             }
             Method::Synth => {
-                let (ex, base) = self.preprocess_with_header(image, source)?;
+                let (ex, base) = self.preprocess_with_header(image, source, [1, 1])?;
                 return crate::bake::synth::bake_synth(&ex, &self.synth, base, progress);
             }
             Method::Auto => {
