@@ -130,6 +130,28 @@ impl Raster {
         })
     }
 
+    /// The raster read as a torus over `width × height` pixels: pixel (x, y) is this
+    /// raster's (x mod its width, y mod its height). Itself where it is empty.
+    pub fn torus(&self, width: usize, height: usize) -> Raster {
+        let (w, h, c) = (self.width, self.height, self.channels);
+        if w * h * c == 0 {
+            return self.clone();
+        }
+        let mut data = Vec::with_capacity(width * height * c);
+        for y in 0..height {
+            let row = &self.data[(y % h) * w * c..(y % h + 1) * w * c];
+            for x0 in (0..width).step_by(w) {
+                data.extend_from_slice(&row[..(width - x0).min(w) * c]);
+            }
+        }
+        Raster {
+            width,
+            height,
+            channels: c,
+            data,
+        }
+    }
+
     /// Number of NaN samples.
     pub fn count_nan(&self) -> usize {
         self.data.iter().filter(|v| v.is_nan()).count()

@@ -255,18 +255,10 @@ pub fn torus_repeats(w: usize, h: usize, patch: usize, wrap: usize) -> [usize; 2
 /// `ex` repeated `repeat[0]` times along x and `repeat[1]` times along y: its torus
 /// unrolled (`ex` itself where a count is 0).
 pub fn repeat_torus(ex: &Raster, repeat: [usize; 2]) -> Raster {
-    let (w, h, c) = (ex.width, ex.height, ex.channels);
-    if w * h * c * repeat[0] * repeat[1] == 0 {
+    if repeat.contains(&0) {
         return ex.clone();
     }
-    let mut out = Raster::zeros(w * repeat[0], h * repeat[1], c);
-    for (y, row) in out.data.chunks_exact_mut(w * repeat[0] * c).enumerate() {
-        let from = &ex.data[(y % h) * w * c..(y % h + 1) * w * c];
-        for copy in row.chunks_exact_mut(w * c) {
-            copy.copy_from_slice(from);
-        }
-    }
-    out
+    ex.torus(ex.width * repeat[0], ex.height * repeat[1])
 }
 
 /// Side of the trials of [`trial_coherence`], at most.

@@ -1065,21 +1065,7 @@ pub fn wrap_fits(w: usize, h: usize, block_px: usize, border_px: usize) -> bool 
 /// The torus `t` repeated to `t.width + p` × `t.height + p` pixels, so that a patch of
 /// p + 1 pixels at any of its `t.width × t.height` positions lies inside.
 pub(crate) fn wrap_extend(t: &Raster, p: usize) -> Raster {
-    let (w, h, c) = (t.width, t.height, t.channels);
-    let (ew, eh) = (w + p, h + p);
-    let mut data = Vec::with_capacity(ew * eh * c);
-    for y in 0..eh {
-        for x in 0..ew {
-            let at = ((y % h) * w + x % w) * c;
-            data.extend_from_slice(&t.data[at..at + c]);
-        }
-    }
-    Raster {
-        width: ew,
-        height: eh,
-        channels: c,
-        data,
-    }
+    t.torus(t.width + p, t.height + p)
 }
 
 /// The exemplar and its 2×2 box-filtered halvings down to [`MIN_LEVEL_SIDE`].
