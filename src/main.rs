@@ -226,7 +226,8 @@ enum Command {
         #[arg(long, allow_negative_numbers = true)]
         overlap: Option<usize>,
         /// RSGF: block side in pixels; default 40, or with --stochastic (and no
-        /// --border) 3 × the exemplar's correlation length, at least 40.
+        /// --border) 2.5 × the exemplar's object scale, at least 40 and at most a third
+        /// of its shorter side.
         #[arg(long, allow_negative_numbers = true)]
         block: Option<usize>,
         /// RSGF: border (patch overlap on each side) in pixels, below half the block;
@@ -261,6 +262,10 @@ enum Command {
         /// blocks at bounded positions would miss the exemplar's histogram.
         #[arg(long, value_enum, default_value_t = Edges::Auto)]
         edges: Edges,
+        /// RSGF, stochastic, block not given: cap the scaled block so that
+        /// self-repetition within an N² window is predicted to stay within 0.15.
+        #[arg(long, value_name = "N", allow_negative_numbers = true)]
+        repeat_window: Option<usize>,
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,
@@ -706,7 +711,7 @@ fn main() -> ExitCode {
 }
 
 /// The library's parameter names, as its messages quote them, and this CLI's flags.
-const FLAGS: [(&str, &str); 32] = [
+const FLAGS: [(&str, &str); 33] = [
     ("fill_missing", "--fill-missing"),
     ("stochastic", "--stochastic"),
     ("lattice", "--lattice"),
@@ -730,6 +735,7 @@ const FLAGS: [(&str, &str); 32] = [
     ("feather", "--feather"),
     ("match_histogram", "--match-histogram"),
     ("edges", "--edges"),
+    ("repeat_window", "--repeat-window"),
     ("levels", "--levels"),
     ("level", "--level"),
     ("k", "--k"),
@@ -1284,6 +1290,7 @@ fn run(command: Command) -> Result<()> {
             stochastic,
             match_histogram,
             edges,
+            repeat_window,
             colours,
             levels,
             k,
@@ -1323,6 +1330,7 @@ fn run(command: Command) -> Result<()> {
                 stochastic,
                 histogram: match_histogram,
                 edges,
+                repeat_window,
             };
             builder = builder.rsgf(rsgf);
             let synth = SynthParams {

@@ -1061,14 +1061,8 @@ fn stochastic_blocks_follow_the_object_scale() {
     )
     .unwrap()
     .raster;
-    let (w, h, c) = (stone.width * 4, stone.height * 4, stone.channels);
-    let big: Vec<f32> = (0..w * h)
-        .flat_map(|i| {
-            let at = ((i / w / 4) * stone.width + i % w / 4) * c;
-            stone.data[at..at + c].to_vec()
-        })
-        .collect();
-    let big = Raster::from_vec(w, h, c, big).unwrap();
+    let big = enlarged(&stone, 4);
+    let (w, h) = (big.width, big.height);
     let (small, large) = (object_scale(&stone), object_scale(&big));
     eprintln!("stone33: object scale {small} px; enlarged 4×: {large} px");
     assert!((3.0..=5.0).contains(&(large / small)), "{small} → {large}");
@@ -1096,6 +1090,96 @@ fn stochastic_blocks_follow_the_object_scale() {
     assert_eq!((given.block_px, given.border_px), (40, 10));
     let lattice = RsgfOptions::default().params_for(&big, (1, 0), (0, 1));
     assert_eq!(lattice.block_px, DEFAULT_BLOCK);
+}
+
+/// `r` enlarged `k`× by repeating each pixel (nearest).
+fn enlarged(r: &Raster, k: usize) -> Raster {
+    let (w, h, c) = (r.width * k, r.height * k, r.channels);
+    let data: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let at = ((i / w / k) * r.width + i % w / k) * c;
+            r.data[at..at + c].to_vec()
+        })
+        .collect();
+    Raster::from_vec(w, h, c, data).unwrap()
+}
+
+/// A repeat window caps a stochastic bank's scaled block where its objects would make
+/// the output repeat itself (`repeat_block`, `predicted_self_repetition`). The
+/// stone-wall photo enlarged 3× (468², stones of 75–150 px) scales to blocks of about
+/// 90 px, and a 1024² output shows its stones verbatim again and again: self-repetition
+/// over issue 31's 0.15. With `repeat_window` 1024 the block drops to the formula's cap
+/// and the measured self-repetition comes within 0.15. The formula predicts both
+/// measurements to within 0.08, and the cap is the largest even block it keeps within
+/// the bar. A window with a block given, or without `stochastic`, is refused.
+#[test]
+fn a_repeat_window_caps_the_block_by_its_self_repetition() {
+    use surftile::bake::rsgf::{REPEAT_BAR, predicted_self_repetition, repeat_block};
+    use surftile::stats::structure::repetition_and_copies;
+    let stone = read_image(
+        &repo("tests/data/gimp-stone33.png"),
+        &ReadOptions::default(),
+    )
+    .unwrap()
+    .raster;
+    let big = enlarged(&stone, 3);
+    let (n, area) = (1024, big.width * big.height);
+    let run = |window: Option<usize>| {
+        let options = RsgfOptions {
+            stochastic: true,
+            repeat_window: window,
+            ..RsgfOptions::default()
+        };
+        let params = options.params_for(&big, (1, 0), (0, 1));
+        let out = RsgfModel::new(&big, &params).unwrap().synthesize(0, n, n);
+        (params.block_px, repetition_and_copies(&big, &out).0)
+    };
+    let (free, free_rep) = run(None);
+    let (capped, capped_rep) = run(Some(n));
+    let cap = repeat_block(n, area);
+    eprintln!(
+        "blocks of {free} px: self-repetition {free_rep:.3} (predicted {:.3}); capped at {cap} px: {capped_rep:.3} (predicted {:.3})",
+        predicted_self_repetition(free, n, area),
+        predicted_self_repetition(capped, n, area)
+    );
+    assert_eq!(capped, cap);
+    assert!(capped < free, "{capped} against {free}");
+    assert!(free_rep > REPEAT_BAR, "{free_rep}");
+    assert!(capped_rep <= REPEAT_BAR, "{capped_rep}");
+    for (b, measured) in [(free, free_rep), (capped, capped_rep)] {
+        let predicted = predicted_self_repetition(b, n, area);
+        assert!(
+            (predicted - measured).abs() < 0.08,
+            "{b} px: {predicted} against {measured}"
+        );
+    }
+    assert!(predicted_self_repetition(cap, n, area) <= REPEAT_BAR);
+    assert!(predicted_self_repetition(cap + 2, n, area) > REPEAT_BAR);
+    for bad in [
+        RsgfOptions {
+            stochastic: true,
+            block_px: Some(60),
+            repeat_window: Some(n),
+            ..RsgfOptions::default()
+        },
+        RsgfOptions {
+            repeat_window: Some(n),
+            ..RsgfOptions::default()
+        },
+        RsgfOptions {
+            stochastic: true,
+            repeat_window: Some(31),
+            ..RsgfOptions::default()
+        },
+    ] {
+        let e = Baker::builder()
+            .method(surftile::bank::Method::Rsgf)
+            .rsgf(bad)
+            .build()
+            .expect_err("refused")
+            .to_string();
+        assert!(e.contains("`repeat_window`") && !e.contains('\n'), "{e}");
+    }
 }
 
 /// Bake flat-fields a photo by default (`Leveling::Auto`): the light on the 127×80

@@ -703,7 +703,7 @@ fn pair_param(name: &str, value: &Bound<'_, PyAny>, sep: char) -> PyResult<(i64,
 }
 
 /// The keywords `bake` takes besides method, spacing_um and seed: the CLI's flags.
-const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels";
+const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, repeat_window, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels";
 
 /// The builder with the keywords applied, in the order given.
 fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyResult<BakerBuilder> {
@@ -768,6 +768,10 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
             "overlap" => b.overlap(count_param(k, &v)?),
             "block" => {
                 rsgf.block_px = Some(count_param(k, &v)?);
+                b
+            }
+            "repeat_window" => {
+                rsgf.repeat_window = Some(count_param(k, &v)?);
                 b
             }
             "border" => {

@@ -261,6 +261,18 @@ def test_edges_keyword_writes_the_cli_bank(cli, tmp_path):
         surftile.bake(str(mud), method="rsgf", stochastic=True, edges="sideways")
 
 
+def test_repeat_window_keyword_writes_the_cli_bank(cli, tmp_path):
+    mud = REPO / "tests/data/gimp-dried-mud.png"
+    out = tmp_path / "cli.bank"
+    cli("bake", mud, "--method", "rsgf", "--stochastic", "--repeat-window", 1024, "--out", out)
+    bank = surftile.bake(str(mud), method="rsgf", stochastic=True, repeat_window=1024)
+    bank.save(tmp_path / "py.bank")
+    assert (tmp_path / "py.bank").read_bytes() == out.read_bytes()
+    assert any("self-repetition within 1024²" in line for line in bank.log), bank.log
+    with pytest.raises(ValueError, match=r"repeat_window.*at least 32"):
+        surftile.bake(str(mud), method="rsgf", stochastic=True, repeat_window=8)
+
+
 def test_info_equals_the_cli(cli, banks):
     for spec in (banks["roller"], banks["milling"], "rock", "parallel-d4-ae05"):
         assert surftile.open(spec).info == json.loads(cli("info", "--json", spec)), spec

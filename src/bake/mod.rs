@@ -259,7 +259,7 @@ impl BakerBuilder {
         )?;
         only(
             m == Rsgf || b.rsgf == RsgfOptions::default(),
-            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram`, `edges` or `stochastic`",
+            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram`, `edges`, `repeat_window` or `stochastic`",
             "rsgf",
         )?;
         only(
@@ -291,6 +291,32 @@ impl BakerBuilder {
                 "reflect with `join` = blend",
                 "`join` = cut: only a cut keeps the mirrored pixels out of the output",
             ));
+        }
+        if let Some(n) = b.rsgf.repeat_window {
+            let p = crate::stats::structure::COPY_PATCH;
+            if !b.rsgf.stochastic {
+                return Err(Error::param(
+                    "`repeat_window`",
+                    format!("{n} without `stochastic`"),
+                    "`stochastic` with it: it caps the block a stochastic bank scales to its exemplar",
+                ));
+            }
+            if b.rsgf.block_px.is_some() || b.rsgf.border_px.is_some() {
+                return Err(Error::param(
+                    "`repeat_window`",
+                    format!("{n} with `block` or `border` given"),
+                    "one of them: the window caps the block that is not given",
+                ));
+            }
+            if n < p {
+                return Err(Error::param(
+                    "`repeat_window`",
+                    n,
+                    format!(
+                        "a window of at least {p} px, the side of the patches self-repetition compares"
+                    ),
+                ));
+            }
         }
         if b.rsgf.stochastic && b.lattice.is_some() {
             return Err(Error::param(

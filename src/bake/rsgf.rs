@@ -43,6 +43,12 @@ pub struct RsgfOptions {
     /// In stochastic mode, how patches meet the exemplar's edges (default: by the
     /// exemplar's [`coverage_bias`]).
     pub edges: Edges,
+    /// In stochastic mode with neither block nor border given: the side of the window
+    /// within which self-repetition should stay within [`REPEAT_BAR`]. The scaled block
+    /// is then capped at [`repeat_block`] for this window (default: none, the block
+    /// follows the objects alone; docs/structure.md, "Block size against
+    /// self-repetition").
+    pub repeat_window: Option<usize>,
 }
 
 impl Default for RsgfOptions {
@@ -58,6 +64,7 @@ impl Default for RsgfOptions {
             stochastic: false,
             histogram: false,
             edges: Edges::Auto,
+            repeat_window: None,
         }
     }
 }
@@ -78,7 +85,7 @@ impl RsgfOptions {
     fn params_with(&self, ex: Option<&Raster>, v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
         let (block_px, border_px) = match (self.block_px, self.border_px, ex) {
             (None, None, Some(ex)) if self.stochastic => {
-                let scale = stochastic_block(ex);
+                let scale = stochastic_block_within(ex, self.repeat_window);
                 (scale.block_px, scale.border_px)
             }
             (b, o, _) => (b.unwrap_or(DEFAULT_BLOCK), o.unwrap_or(DEFAULT_BORDER)),
@@ -145,6 +152,8 @@ pub struct BlockScale {
     pub block_px: usize,
     /// Border o = B / 4.
     pub border_px: usize,
+    /// The cap [`repeat_block`] set for the window given, px (None: no window).
+    pub repeat_cap_px: Option<usize>,
 }
 
 /// The object scale of an exemplar: the first radius at which its autocorrelation
@@ -292,15 +301,61 @@ const COVERAGE_BINS: usize = 4096;
 /// of stones, and a 1024² photo of craters in 40-px blotches. The photos of 80–256 px
 /// in `tests/data` read 3–12 px and keep the paper's 40 and 10 px.
 pub fn stochastic_block(ex: &Raster) -> BlockScale {
+    stochastic_block_within(ex, None)
+}
+
+/// [`stochastic_block`], capped at [`repeat_block`] for a `window`² output and the
+/// exemplar's area where a window is given.
+pub fn stochastic_block_within(ex: &Raster, window: Option<usize>) -> BlockScale {
     let scale_px = object_scale(ex);
     let want = (BLOCK_PER_SCALE * scale_px).round();
-    let cap = (ex.width.min(ex.height) / 3) as f64;
+    let mut cap = (ex.width.min(ex.height) / 3) as f64;
+    let repeat_cap_px = window.map(|n| repeat_block(n, ex.width * ex.height));
+    if let Some(b) = repeat_cap_px {
+        cap = cap.min(b as f64);
+    }
     let block_px = (want.min(cap).max(DEFAULT_BLOCK as f64) as usize) & !1;
     BlockScale {
         scale_px,
         block_px,
         border_px: block_px / 4,
+        repeat_cap_px,
     }
+}
+
+/// The self-repetition bar of issue 31 that [`repeat_block`] keeps within.
+pub const REPEAT_BAR: f64 = 0.15;
+
+/// The self-repetition that stochastic blocks of `block` px predict within a
+/// `window`² output of an exemplar of `area` pixels (docs/structure.md, "Why, in
+/// numbers"). A block copies its patch verbatim, so a 32-px grid patch of the output
+/// ([`crate::stats::structure::COPY_PATCH`]) lying inside one block, a share
+/// ((B − 31) / B)² of them, has a near-copy wherever another block covers the same
+/// exemplar patch: about λ = (N / B)²·(B − 31)² / A times. The prediction is that share
+/// times 1 − e^−λ. Measured on ETR's `ice01` (1024², A = 256²): 0.004, 0.148 and 0.357
+/// for B = 40, 56 and 84, where this reads 0.03, 0.19 and 0.40.
+pub fn predicted_self_repetition(block: usize, window: usize, area: usize) -> f64 {
+    let p = crate::stats::structure::COPY_PATCH;
+    if block < p || area == 0 {
+        return 0.0;
+    }
+    let (b, inside) = (block as f64, (block + 1 - p) as f64);
+    let lambda = (window as f64 / b).powi(2) * inside * inside / area as f64;
+    (inside / b).powi(2) * (1.0 - (-lambda).exp())
+}
+
+/// The largest even block of at least [`DEFAULT_BLOCK`] px whose
+/// [`predicted_self_repetition`] within a `window`² output of an exemplar of `area`
+/// pixels is at most [`REPEAT_BAR`]; [`DEFAULT_BLOCK`] where none is. The prediction
+/// grows with the block, so the search stops at the first block over the bar.
+pub fn repeat_block(window: usize, area: usize) -> usize {
+    let mut b = DEFAULT_BLOCK;
+    while b < crate::models::rsgf::MAX_BLOCK
+        && predicted_self_repetition(b + 2, window, area) <= REPEAT_BAR
+    {
+        b += 2;
+    }
+    b
 }
 
 /// Pixel-scale roughness at and above which a stochastic bank's cuts ramp over
@@ -459,9 +514,16 @@ pub(crate) fn bake(
     // measured once, said, and fixed in the options every later step uses.
     let mut resolved = options.clone();
     if options.stochastic && options.block_px.is_none() && options.border_px.is_none() {
-        let scale = stochastic_block(ex);
+        let scale = stochastic_block_within(ex, options.repeat_window);
+        let repeat = match (options.repeat_window, scale.repeat_cap_px) {
+            (Some(n), Some(cap)) => format!(
+                ", and at most {cap} px, where self-repetition within {n}² is predicted to stay within {REPEAT_BAR} (predicted {:.3})",
+                predicted_self_repetition(scale.block_px, n, w * h)
+            ),
+            _ => String::new(),
+        };
         progress(&format!(
-            "blocks of {} px, border {} px: {BLOCK_PER_SCALE} × the object scale {:.0} px (autocorrelation below {SCALE_ACF}), kept within [{DEFAULT_BLOCK} px, a third of the shorter side] (pass --block to choose)",
+            "blocks of {} px, border {} px: {BLOCK_PER_SCALE} × the object scale {:.0} px (autocorrelation below {SCALE_ACF}), kept within [{DEFAULT_BLOCK} px, a third of the shorter side]{repeat} (pass --block to choose)",
             scale.block_px, scale.border_px, scale.scale_px
         ));
         resolved.block_px = Some(scale.block_px);
