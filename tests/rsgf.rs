@@ -1055,12 +1055,7 @@ fn stochastic_blocks_follow_the_object_scale() {
             scale.scale_px
         );
     }
-    let stone = read_image(
-        &repo("tests/data/gimp-stone33.png"),
-        &ReadOptions::default(),
-    )
-    .unwrap()
-    .raster;
+    let stone = stone_wall();
     let big = enlarged(&stone, 4);
     let (w, h) = (big.width, big.height);
     let (small, large) = (object_scale(&stone), object_scale(&big));
@@ -1092,6 +1087,16 @@ fn stochastic_blocks_follow_the_object_scale() {
     assert_eq!(lattice.block_px, DEFAULT_BLOCK);
 }
 
+/// The GIMP stone-wall photo of `tests/data` (156², stones of 25–50 px), as read.
+fn stone_wall() -> Raster {
+    read_image(
+        &repo("tests/data/gimp-stone33.png"),
+        &ReadOptions::default(),
+    )
+    .unwrap()
+    .raster
+}
+
 /// `r` enlarged `k`× by repeating each pixel (nearest).
 fn enlarged(r: &Raster, k: usize) -> Raster {
     let (w, h, c) = (r.width * k, r.height * k, r.channels);
@@ -1116,12 +1121,7 @@ fn enlarged(r: &Raster, k: usize) -> Raster {
 fn a_repeat_window_caps_the_block_by_its_self_repetition() {
     use surftile::bake::rsgf::{REPEAT_BAR, predicted_self_repetition, repeat_block};
     use surftile::stats::structure::repetition_and_copies;
-    let stone = read_image(
-        &repo("tests/data/gimp-stone33.png"),
-        &ReadOptions::default(),
-    )
-    .unwrap()
-    .raster;
+    let stone = stone_wall();
     let big = enlarged(&stone, 3);
     let (n, area) = (1024, big.width * big.height);
     let run = |window: Option<usize>| {
@@ -1180,6 +1180,74 @@ fn a_repeat_window_caps_the_block_by_its_self_repetition() {
             .to_string();
         assert!(e.contains("`repeat_window`") && !e.contains('\n'), "{e}");
     }
+}
+
+/// Without a repeat window, the bake says where its scaled blocks are predicted to
+/// repeat over issue 31's bar within 1024² (`repetition_advice`), with the cap that
+/// `--repeat-window 1024` would give: on the stone wall enlarged 3×, whose blocks
+/// repeat (0.390 measured above), and not on the wall as photographed (40-px blocks,
+/// predicted under 0.05), nor when a window is given.
+#[test]
+fn bake_says_when_its_blocks_would_repeat() {
+    use surftile::bake::rsgf::{ADVICE_WINDOW, predicted_self_repetition, repeat_block};
+    use surftile::io::ImageFile;
+    let stone = stone_wall();
+    let log = |raster: &Raster, window: Option<usize>| {
+        let baker = Baker::builder()
+            .method(surftile::bank::Method::Rsgf)
+            .rsgf(RsgfOptions {
+                stochastic: true,
+                repeat_window: window,
+                ..RsgfOptions::default()
+            })
+            .build()
+            .unwrap();
+        let mut lines = Vec::new();
+        baker
+            .bake(&ImageFile::new(raster.clone(), None), "wall", &mut |l| {
+                lines.push(l.to_string())
+            })
+            .unwrap();
+        lines
+    };
+    let block_of = |lines: &[String]| -> usize {
+        let line = lines.iter().find(|l| l.starts_with("blocks of ")).unwrap();
+        line["blocks of ".len()..]
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let big = enlarged(&stone, 3);
+    let area = big.width * big.height;
+    let lines = log(&big, None);
+    let block = block_of(&lines);
+    let advice: Vec<&String> = lines
+        .iter()
+        .filter(|l| l.starts_with("self-repetition within"))
+        .collect();
+    assert_eq!(advice.len(), 1, "{lines:?}");
+    let n = ADVICE_WINDOW;
+    let predicted = predicted_self_repetition(block, n, area);
+    let cap = repeat_block(n, area);
+    assert!(predicted > 0.15 && cap < block, "{block} px: {predicted}");
+    for part in [
+        format!("within {n}²"),
+        format!("predicted at {predicted:.2} with {block}-px blocks"),
+        format!("--repeat-window {n} caps them at {cap} px"),
+    ] {
+        assert!(advice[0].contains(&part), "{part} not in {}", advice[0]);
+    }
+    for quiet in [log(&stone, None), log(&big, Some(n))] {
+        assert!(
+            !quiet
+                .iter()
+                .any(|l| l.starts_with("self-repetition within")),
+            "{quiet:?}"
+        );
+    }
+    assert_eq!(block_of(&log(&stone, None)), 40);
 }
 
 /// Bake flat-fields a photo by default (`Leveling::Auto`): the light on the 127×80

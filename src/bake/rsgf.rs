@@ -358,6 +358,29 @@ pub fn repeat_block(window: usize, area: usize) -> usize {
     b
 }
 
+/// The output side within which [`repetition_advice`] predicts self-repetition: issue
+/// 31's window for its bar.
+pub const ADVICE_WINDOW: usize = 1024;
+
+/// One line for the bake log where stochastic blocks of `block` px from an exemplar of
+/// `area` pixels are predicted to repeat over [`REPEAT_BAR`] within
+/// [`ADVICE_WINDOW`]² ([`predicted_self_repetition`]) and a smaller block would not:
+/// the prediction, and the `--repeat-window` cap ([`repeat_block`]) with its cost.
+/// `None` where the blocks stay within the bar (every photo of `tests/data`, with 40-px
+/// blocks, predicts at most 0.05). The choice stays the user's (docs/structure.md,
+/// "Block size against self-repetition").
+pub fn repetition_advice(block: usize, area: usize) -> Option<String> {
+    let n = ADVICE_WINDOW;
+    let predicted = predicted_self_repetition(block, n, area);
+    let cap = repeat_block(n, area);
+    (predicted > REPEAT_BAR && cap < block).then(|| {
+        format!(
+            "self-repetition within {n}² is predicted at {predicted:.2} with {block}-px blocks (bar {REPEAT_BAR}): --repeat-window {n} caps them at {cap} px (predicted {:.2}), which cuts objects larger than that",
+            predicted_self_repetition(cap, n, area)
+        )
+    })
+}
+
 /// Pixel-scale roughness at and above which a stochastic bank's cuts ramp over
 /// [`ROUGH_FEATHER`] ([`stochastic_feather`]).
 pub const ROUGH_AT: f64 = 0.1;
@@ -526,6 +549,11 @@ pub(crate) fn bake(
             "blocks of {} px, border {} px: {BLOCK_PER_SCALE} × the object scale {:.0} px (autocorrelation below {SCALE_ACF}), kept within [{DEFAULT_BLOCK} px, a third of the shorter side]{repeat} (pass --block to choose)",
             scale.block_px, scale.border_px, scale.scale_px
         ));
+        if options.repeat_window.is_none()
+            && let Some(line) = repetition_advice(scale.block_px, w * h)
+        {
+            progress(&line);
+        }
         resolved.block_px = Some(scale.block_px);
         resolved.border_px = Some(scale.border_px);
     }
