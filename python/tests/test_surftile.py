@@ -273,6 +273,21 @@ def test_repeat_window_keyword_writes_the_cli_bank(cli, tmp_path):
         surftile.bake(str(mud), method="rsgf", stochastic=True, repeat_window=8)
 
 
+def test_bake_log_says_when_blocks_would_repeat(tmp_path):
+    # The stone wall enlarged 4× (stones of 100–200 px) scales to blocks whose copies
+    # recur within 1024²: Bank.log says so once, with the cap of repeat_window=1024.
+    # The wall as photographed keeps 40-px blocks and no such line.
+    wall = REPO / "tests/data/gimp-stone33.png"
+    grey = surftile.read(str(wall))["heights"].mean(axis=2)
+    big = np.repeat(np.repeat(grey, 4, axis=0), 4, axis=1).astype(np.float32)
+    np.save(tmp_path / "wall4.npy", big)
+    bank = surftile.bake(str(tmp_path / "wall4.npy"), method="rsgf", stochastic=True)
+    advice = [line for line in bank.log if line.startswith("self-repetition within 1024²")]
+    assert len(advice) == 1 and "--repeat-window 1024 caps them at" in advice[0], bank.log
+    photo = surftile.bake(str(wall), method="rsgf", stochastic=True)
+    assert not any(line.startswith("self-repetition within") for line in photo.log), photo.log
+
+
 def test_info_equals_the_cli(cli, banks):
     for spec in (banks["roller"], banks["milling"], "rock", "parallel-d4-ae05"):
         assert surftile.open(spec).info == json.loads(cli("info", "--json", spec)), spec
