@@ -1185,8 +1185,8 @@ fn a_repeat_window_caps_the_block_by_its_self_repetition() {
 /// Without a repeat window, the bake says where its scaled blocks are predicted to
 /// repeat over issue 31's bar within 1024² (`repetition_advice`), with the cap that
 /// `--repeat-window 1024` would give: on the stone wall enlarged 3×, whose blocks
-/// repeat (0.390 measured above), and not on the wall as photographed (40-px blocks,
-/// predicted under 0.05), nor when a window is given.
+/// repeat (over 0.15 measured above), and not on the wall as photographed (40-px
+/// blocks, predicted at most 0.051), nor when a window is given.
 #[test]
 fn bake_says_when_its_blocks_would_repeat() {
     use surftile::bake::rsgf::{ADVICE_WINDOW, predicted_self_repetition, repeat_block};
