@@ -367,8 +367,8 @@ pub const ADVICE_WINDOW: usize = 1024;
 /// [`ADVICE_WINDOW`]² ([`predicted_self_repetition`]) and a smaller block would not:
 /// the prediction, and the `--repeat-window` cap ([`repeat_block`]) with its cost.
 /// `None` where the blocks stay within the bar (every photo of `tests/data`, with 40-px
-/// blocks, predicts at most 0.051: ((40 − 31)/40)²). The choice stays the user's (docs/structure.md,
-/// "Block size against self-repetition").
+/// blocks, predicts at most 0.051: ((40 − 31)/40)²). The choice stays the user's
+/// (docs/structure.md, "Block size against self-repetition").
 pub fn repetition_advice(block: usize, area: usize) -> Option<String> {
     let n = ADVICE_WINDOW;
     let predicted = predicted_self_repetition(block, n, area);
