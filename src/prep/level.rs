@@ -392,26 +392,24 @@ pub fn clipped_pixels(raster: &Raster) -> Vec<bool> {
             }
         }
     }
-    // Whether a pixel sits at every channel's maximum (high) or minimum.
-    let at = |px: &[f32], high: bool| {
-        px.iter()
-            .zip(&ends)
-            .all(|(&v, e)| v == if high { e.1 } else { e.0 })
-    };
-    let n = raster.data.len() / c;
-    let piled = |high| {
-        let count = raster
-            .data
-            .chunks_exact(c)
-            .filter(|px| at(px, high))
-            .count();
-        count as f64 >= CLIPPED_SHARE * n as f64
-    };
-    let (clip_low, clip_high) = (piled(false), piled(true));
-    raster
+    // Per pixel: (at every channel's maximum, at every channel's minimum).
+    let ends_of: Vec<(bool, bool)> = raster
         .data
         .chunks_exact(c)
-        .map(|px| (clip_high && at(px, true)) || (clip_low && at(px, false)))
+        .map(|px| {
+            let mut at = (true, true);
+            for (&v, e) in px.iter().zip(&ends) {
+                at = (at.0 && v == e.1, at.1 && v == e.0);
+            }
+            at
+        })
+        .collect();
+    let need = CLIPPED_SHARE * ends_of.len() as f64;
+    let clip_high = ends_of.iter().filter(|e| e.0).count() as f64 >= need;
+    let clip_low = ends_of.iter().filter(|e| e.1).count() as f64 >= need;
+    ends_of
+        .into_iter()
+        .map(|(high, low)| (clip_high && high) || (clip_low && low))
         .collect()
 }
 
