@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
-use surftile::bake::rsgf::RsgfOptions;
+use surftile::bake::rsgf::{RepeatWindow, RsgfOptions};
 use surftile::bake::{Baker, Leveling};
 use surftile::bank::Method;
 use surftile::io::{ReadOptions, read_image};
@@ -60,6 +60,10 @@ struct Args {
     /// RSGF: the gap border's measure, ssd or ncc (empty: the default).
     #[arg(long, default_value = "")]
     metric: String,
+    /// RSGF, block not given: the window whose self-repetition caps the block (auto:
+    /// 1024², bake's default; off: the block follows the objects alone).
+    #[arg(long, default_value_t = RepeatWindow::Auto)]
+    repeat_window: RepeatWindow,
     /// Skip texture-synthesis (slow).
     #[arg(long)]
     no_embark: bool,
@@ -147,6 +151,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             "ncc" => Some(Metric::Ncc),
             other => return Err(format!("--metric {other}: expected ssd or ncc").into()),
         },
+        repeat_window: args.repeat_window,
         ..RsgfOptions::default()
     };
     let block = options.params_for(&image.raster, (1, 0), (0, 1)).block_px;

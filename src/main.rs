@@ -8,7 +8,7 @@ use std::time::Instant;
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 use clap::{Args, Parser, Subcommand};
 
-use surftile::bake::rsgf::RsgfOptions;
+use surftile::bake::rsgf::{RepeatWindow, RsgfOptions};
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
 use surftile::demo::run_demo;
@@ -262,10 +262,11 @@ enum Command {
         /// blocks at bounded positions would miss the exemplar's histogram.
         #[arg(long, value_enum, default_value_t = Edges::Auto)]
         edges: Edges,
-        /// RSGF, stochastic, block not given: cap the scaled block so that
-        /// self-repetition within an N² window is predicted to stay within 0.15.
-        #[arg(long, value_name = "N", allow_negative_numbers = true)]
-        repeat_window: Option<usize>,
+        /// RSGF, stochastic, block not given: cap the block scaled to the exemplar's
+        /// objects so that self-repetition within an N² window is predicted to stay
+        /// within 0.15; auto: N = 1024 (issue 31's window); off: no cap.
+        #[arg(long, value_name = "N|auto|off", default_value_t = RepeatWindow::Auto, allow_negative_numbers = true)]
+        repeat_window: RepeatWindow,
         /// Quilt: colours per edge direction K (the bank holds K⁴ Wang tiles).
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         colours: usize,

@@ -1016,11 +1016,16 @@ fn bad_rsgf_input_is_refused() {
 /// and 10-px border (so the structure figures of docs/structure.md stand); the
 /// stone-wall photo enlarged 4× (stones of 100–200 px, which 40-px blocks broke into
 /// shards) scales its object scale about 4× and gets blocks of 120–200 px, a quarter
-/// of that as border, with room for the patch; a block that is given wins, and a
-/// lattice bank keeps 40 px.
+/// of that as border, with room for the patch, where no repeat window caps them
+/// (`--repeat-window off`); by default the window of issue 31's bar (1024²) caps them at
+/// `repeat_block`, under that; a block that is given wins, and a lattice bank keeps 40
+/// px.
 #[test]
 fn stochastic_blocks_follow_the_object_scale() {
-    use surftile::bake::rsgf::{DEFAULT_BLOCK, DEFAULT_BORDER, object_scale, stochastic_block};
+    use surftile::bake::rsgf::{
+        DEFAULT_BLOCK, DEFAULT_BORDER, DEFAULT_REPEAT_WINDOW, RepeatWindow, object_scale,
+        repeat_block, stochastic_block, stochastic_block_within,
+    };
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let noise: Vec<f32> = (0..128 * 128)
         .map(|_| {
@@ -1054,6 +1059,8 @@ fn stochastic_blocks_follow_the_object_scale() {
             "{name}: object scale {}",
             scale.scale_px
         );
+        let capped = stochastic_block_within(&ex, Some(DEFAULT_REPEAT_WINDOW));
+        assert_eq!(capped.block_px, DEFAULT_BLOCK, "{name}: {capped:?}");
     }
     let stone = stone_wall();
     let big = enlarged(&stone, 4);
@@ -1066,17 +1073,32 @@ fn stochastic_blocks_follow_the_object_scale() {
         (120..=200).contains(&scale.block_px) && scale.border_px == scale.block_px / 4,
         "{scale:?}"
     );
-    let stochastic = RsgfOptions {
+    let uncapped = RsgfOptions {
         stochastic: true,
+        repeat_window: RepeatWindow::Off,
         ..RsgfOptions::default()
     };
-    let params = stochastic.params_for(&big, (1, 0), (0, 1));
+    let params = uncapped.params_for(&big, (1, 0), (0, 1));
     assert_eq!(
         (params.block_px, params.border_px),
         (scale.block_px, scale.border_px)
     );
     params.validate().unwrap();
     params.check_exemplar(w, h).unwrap();
+    let stochastic = RsgfOptions {
+        stochastic: true,
+        ..RsgfOptions::default()
+    };
+    let capped = stochastic.params_for(&big, (1, 0), (0, 1));
+    let cap = repeat_block(DEFAULT_REPEAT_WINDOW, w * h);
+    assert!(cap < scale.block_px, "{cap} against {scale:?}");
+    assert_eq!((capped.block_px, capped.border_px), (cap, cap / 4));
+    assert_eq!(
+        stochastic_block_within(&big, Some(1024)).uncapped_px,
+        scale.block_px
+    );
+    capped.validate().unwrap();
+    capped.check_exemplar(w, h).unwrap();
     let given = RsgfOptions {
         block_px: Some(40),
         ..stochastic.clone()
@@ -1114,28 +1136,37 @@ fn enlarged(r: &Raster, k: usize) -> Raster {
 /// stone-wall photo enlarged 3× (468², stones of 75–150 px) scales to blocks of about
 /// 90 px, and a 1024² output shows its stones verbatim again and again: self-repetition
 /// over issue 31's 0.15. With `repeat_window` 1024 the block drops to the formula's cap
-/// and the measured self-repetition comes within 0.15. The formula predicts both
+/// and the measured self-repetition comes within 0.15; `RepeatWindow::Auto`, the
+/// default, is that window, and `Off` lifts the cap. The formula predicts both
 /// measurements to within 0.08, and the cap is the largest even block it keeps within
 /// the bar. A window with a block given, or without `stochastic`, is refused.
 #[test]
 fn a_repeat_window_caps_the_block_by_its_self_repetition() {
-    use surftile::bake::rsgf::{REPEAT_BAR, predicted_self_repetition, repeat_block};
+    use surftile::bake::rsgf::{REPEAT_BAR, RepeatWindow, predicted_self_repetition, repeat_block};
     use surftile::stats::structure::repetition_and_copies;
     let stone = stone_wall();
     let big = enlarged(&stone, 3);
     let (n, area) = (1024, big.width * big.height);
-    let run = |window: Option<usize>| {
-        let options = RsgfOptions {
-            stochastic: true,
-            repeat_window: window,
-            ..RsgfOptions::default()
-        };
-        let params = options.params_for(&big, (1, 0), (0, 1));
+    let options = |window: RepeatWindow| RsgfOptions {
+        stochastic: true,
+        repeat_window: window,
+        ..RsgfOptions::default()
+    };
+    let run = |window: RepeatWindow| {
+        let params = options(window).params_for(&big, (1, 0), (0, 1));
         let out = RsgfModel::new(&big, &params).unwrap().synthesize(0, n, n);
         (params.block_px, repetition_and_copies(&big, &out).0)
     };
-    let (free, free_rep) = run(None);
-    let (capped, capped_rep) = run(Some(n));
+    let (free, free_rep) = run(RepeatWindow::Off);
+    let (capped, capped_rep) = run(RepeatWindow::Side(n));
+    let by_default = RsgfOptions {
+        stochastic: true,
+        ..RsgfOptions::default()
+    };
+    assert_eq!(
+        by_default.params_for(&big, (1, 0), (0, 1)),
+        options(RepeatWindow::Side(n)).params_for(&big, (1, 0), (0, 1))
+    );
     let cap = repeat_block(n, area);
     eprintln!(
         "blocks of {free} px: self-repetition {free_rep:.3} (predicted {:.3}); capped at {cap} px: {capped_rep:.3} (predicted {:.3})",
@@ -1159,16 +1190,16 @@ fn a_repeat_window_caps_the_block_by_its_self_repetition() {
         RsgfOptions {
             stochastic: true,
             block_px: Some(60),
-            repeat_window: Some(n),
+            repeat_window: RepeatWindow::Side(n),
             ..RsgfOptions::default()
         },
         RsgfOptions {
-            repeat_window: Some(n),
+            repeat_window: RepeatWindow::Side(n),
             ..RsgfOptions::default()
         },
         RsgfOptions {
             stochastic: true,
-            repeat_window: Some(31),
+            repeat_window: RepeatWindow::Side(31),
             ..RsgfOptions::default()
         },
     ] {
@@ -1180,19 +1211,44 @@ fn a_repeat_window_caps_the_block_by_its_self_repetition() {
             .to_string();
         assert!(e.contains("`repeat_window`") && !e.contains('\n'), "{e}");
     }
+    // `auto` passes a window on to the stochastic RSGF it may pick; other methods have
+    // no scaled block to cap.
+    let with = |method, window| {
+        Baker::builder()
+            .method(method)
+            .rsgf(RsgfOptions {
+                repeat_window: window,
+                ..RsgfOptions::default()
+            })
+            .build()
+    };
+    use surftile::bank::Method;
+    for window in [RepeatWindow::Off, RepeatWindow::Side(n)] {
+        assert!(with(Method::Auto, window).is_ok(), "{window}");
+        let e = with(Method::Roller, window)
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            e.contains("rsgf or auto") && e.contains("`repeat_window`"),
+            "{e}"
+        );
+    }
 }
 
-/// Without a repeat window, the bake says where its scaled blocks are predicted to
-/// repeat over issue 31's bar within 1024² (`repetition_advice`), with the cap that
-/// `--repeat-window 1024` would give: on the stone wall enlarged 3×, whose blocks
+/// With the cap lifted (`RepeatWindow::Off`), the bake says where its scaled blocks are
+/// predicted to repeat over issue 31's bar within 1024² (`repetition_advice`), with the
+/// cap that the default window would give: on the stone wall enlarged 3×, whose blocks
 /// repeat (over 0.15 measured above), and not on the wall as photographed (40-px
-/// blocks, predicted at most 0.051), nor when a window is given.
+/// blocks, predicted at most 0.051), nor under a window. By default the blocks are
+/// capped, and the bake says so, with the block `off` would keep.
 #[test]
 fn bake_says_when_its_blocks_would_repeat() {
-    use surftile::bake::rsgf::{ADVICE_WINDOW, predicted_self_repetition, repeat_block};
+    use surftile::bake::rsgf::{
+        DEFAULT_REPEAT_WINDOW, RepeatWindow, predicted_self_repetition, repeat_block,
+    };
     use surftile::io::ImageFile;
     let stone = stone_wall();
-    let log = |raster: &Raster, window: Option<usize>| {
+    let log = |raster: &Raster, window: RepeatWindow| {
         let baker = Baker::builder()
             .method(surftile::bank::Method::Rsgf)
             .rsgf(RsgfOptions {
@@ -1221,25 +1277,40 @@ fn bake_says_when_its_blocks_would_repeat() {
     };
     let big = enlarged(&stone, 3);
     let area = big.width * big.height;
-    let lines = log(&big, None);
+    let lines = log(&big, RepeatWindow::Off);
     let block = block_of(&lines);
     let advice: Vec<&String> = lines
         .iter()
         .filter(|l| l.starts_with("self-repetition within"))
         .collect();
     assert_eq!(advice.len(), 1, "{lines:?}");
-    let n = ADVICE_WINDOW;
+    let n = DEFAULT_REPEAT_WINDOW;
     let predicted = predicted_self_repetition(block, n, area);
     let cap = repeat_block(n, area);
     assert!(predicted > 0.15 && cap < block, "{block} px: {predicted}");
     for part in [
         format!("within {n}²"),
         format!("predicted at {predicted:.2} with {block}-px blocks"),
-        format!("--repeat-window {n} caps them at {cap} px"),
+        format!("--repeat-window auto ({n}) caps them at {cap} px"),
     ] {
         assert!(advice[0].contains(&part), "{part} not in {}", advice[0]);
     }
-    for quiet in [log(&stone, None), log(&big, Some(n))] {
+    let by_default = log(&big, RepeatWindow::Auto);
+    assert_eq!(block_of(&by_default), cap, "{by_default:?}");
+    let said = by_default
+        .iter()
+        .find(|l| l.starts_with("blocks of "))
+        .unwrap();
+    assert!(
+        said.contains(&format!("at most {cap} px"))
+            && said.contains(&format!("--repeat-window off keeps {block} px")),
+        "{said}"
+    );
+    for quiet in [
+        log(&stone, RepeatWindow::Off),
+        log(&big, RepeatWindow::Side(n)),
+        by_default,
+    ] {
         assert!(
             !quiet
                 .iter()
@@ -1247,7 +1318,7 @@ fn bake_says_when_its_blocks_would_repeat() {
             "{quiet:?}"
         );
     }
-    assert_eq!(block_of(&log(&stone, None)), 40);
+    assert_eq!(block_of(&log(&stone, RepeatWindow::Auto)), 40);
 }
 
 /// Bake flat-fields a photo by default (`Leveling::Auto`): the light on the 127×80

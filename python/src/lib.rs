@@ -24,7 +24,7 @@ use pyo3::exceptions::{
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList};
 
-use surftile::bake::rsgf::RsgfOptions;
+use surftile::bake::rsgf::{RepeatWindow, RsgfOptions};
 use surftile::bake::{Baker, BakerBuilder, Leveling};
 use surftile::bank::Method;
 use surftile::error::Error;
@@ -771,7 +771,16 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
                 b
             }
             "repeat_window" => {
-                rsgf.repeat_window = Some(count_param(k, &v)?);
+                rsgf.repeat_window = match v.extract::<String>() {
+                    Ok(text) => text.parse().map_err(|_: String| {
+                        bad(
+                            k,
+                            format!("{text:?}"),
+                            "auto, off or the window's side in pixels",
+                        )
+                    })?,
+                    Err(_) => RepeatWindow::Side(count_param(k, &v)?),
+                };
                 b
             }
             "border" => {

@@ -271,19 +271,35 @@ def test_repeat_window_keyword_writes_the_cli_bank(cli, tmp_path):
     assert any("self-repetition within 1024²" in line for line in bank.log), bank.log
     with pytest.raises(ValueError, match=r"repeat_window.*at least 32"):
         surftile.bake(str(mud), method="rsgf", stochastic=True, repeat_window=8)
+    off = tmp_path / "cli-off.bank"
+    cli("bake", mud, "--method", "rsgf", "--stochastic", "--repeat-window", "off", "--out", off)
+    surftile.bake(str(mud), method="rsgf", stochastic=True, repeat_window="off").save(
+        tmp_path / "py-off.bank"
+    )
+    assert (tmp_path / "py-off.bank").read_bytes() == off.read_bytes()
+    with pytest.raises(ValueError, match=r"repeat_window.*auto, off or the window's side"):
+        surftile.bake(str(mud), method="rsgf", stochastic=True, repeat_window="sometimes")
 
 
 def test_bake_log_says_when_blocks_would_repeat(tmp_path):
     # The stone wall enlarged 4× (stones of 100–200 px) scales to blocks whose copies
-    # recur within 1024²: Bank.log says so once, with the cap of repeat_window=1024.
+    # recur within 1024²: by default they are capped, and Bank.log says which block
+    # repeat_window="off" keeps; with "off", it says once what the default cap would be.
     # The wall as photographed keeps 40-px blocks and no such line.
     wall = REPO / "tests/data/gimp-stone33.png"
     grey = surftile.read(str(wall))["heights"].mean(axis=2)
     big = np.repeat(np.repeat(grey, 4, axis=0), 4, axis=1).astype(np.float32)
     np.save(tmp_path / "wall4.npy", big)
-    bank = surftile.bake(str(tmp_path / "wall4.npy"), method="rsgf", stochastic=True)
+    capped = surftile.bake(str(tmp_path / "wall4.npy"), method="rsgf", stochastic=True)
+    blocks = [line for line in capped.log if line.startswith("blocks of ")]
+    assert len(blocks) == 1 and "--repeat-window off keeps" in blocks[0], capped.log
+    bank = surftile.bake(
+        str(tmp_path / "wall4.npy"), method="rsgf", stochastic=True, repeat_window="off"
+    )
     advice = [line for line in bank.log if line.startswith("self-repetition within 1024²")]
-    assert len(advice) == 1 and "--repeat-window 1024 caps them at" in advice[0], bank.log
+    assert len(advice) == 1 and "--repeat-window auto (1024) caps them at" in advice[0], bank.log
+    cap = int(advice[0].split("caps them at ")[1].split(" px")[0])
+    assert blocks[0].startswith(f"blocks of {cap} px"), (blocks, advice)
     photo = surftile.bake(str(wall), method="rsgf", stochastic=True)
     assert not any(line.startswith("self-repetition within") for line in photo.log), photo.log
 

@@ -257,10 +257,21 @@ impl BakerBuilder {
             "`lattice`",
             "roller or rsgf",
         )?;
+        use crate::bake::rsgf::RepeatWindow;
+        let rest = RsgfOptions {
+            repeat_window: RepeatWindow::Auto,
+            ..b.rsgf.clone()
+        };
         only(
-            m == Rsgf || b.rsgf == RsgfOptions::default(),
-            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram`, `edges`, `repeat_window` or `stochastic`",
+            m == Rsgf || rest == RsgfOptions::default(),
+            "`block`, `border`, `tolerance`, `metric`, `join`, `feather`, `match_histogram`, `edges` or `stochastic`",
             "rsgf",
+        )?;
+        // `auto` passes the window on where it picks stochastic RSGF.
+        only(
+            matches!(m, Rsgf | Method::Auto) || b.rsgf.repeat_window == RepeatWindow::Auto,
+            "`repeat_window`",
+            "rsgf or auto",
         )?;
         only(
             m == Synth || b.synth == crate::models::synth::SynthParams::default(),
@@ -292,13 +303,13 @@ impl BakerBuilder {
                 "`join` = cut: only a cut keeps the mirrored pixels out of the output",
             ));
         }
-        if let Some(n) = b.rsgf.repeat_window {
+        if let RepeatWindow::Side(n) = b.rsgf.repeat_window {
             let p = crate::stats::structure::COPY_PATCH;
-            if !b.rsgf.stochastic {
+            if !b.rsgf.stochastic && m != Method::Auto {
                 return Err(Error::param(
                     "`repeat_window`",
                     format!("{n} without `stochastic`"),
-                    "`stochastic` with it: it caps the block a stochastic bank scales to its exemplar",
+                    "`stochastic` or `method` = auto with it: it caps the block a stochastic bank scales to its exemplar",
                 ));
             }
             if b.rsgf.block_px.is_some() || b.rsgf.border_px.is_some() {

@@ -43,12 +43,61 @@ pub struct RsgfOptions {
     /// In stochastic mode, how patches meet the exemplar's edges (default: by the
     /// exemplar's [`coverage_bias`]).
     pub edges: Edges,
-    /// In stochastic mode with neither block nor border given: the side of the window
-    /// within which self-repetition should stay within [`REPEAT_BAR`]. The scaled block
-    /// is then capped at [`repeat_block`] for this window (default: none, the block
-    /// follows the objects alone; docs/structure.md, "Block size against
-    /// self-repetition").
-    pub repeat_window: Option<usize>,
+    /// In stochastic mode with neither block nor border given: the window within which
+    /// self-repetition should stay within [`REPEAT_BAR`]; the scaled block is capped at
+    /// [`repeat_block`] for it. Default: issue 31's [`DEFAULT_REPEAT_WINDOW`]² (docs/structure.md,
+    /// "Block size against self-repetition").
+    pub repeat_window: RepeatWindow,
+}
+
+/// The window a stochastic bank's scaled block keeps its self-repetition within
+/// ([`RsgfOptions::repeat_window`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RepeatWindow {
+    /// [`DEFAULT_REPEAT_WINDOW`]², where the block is scaled (stochastic, neither block nor
+    /// border given); nothing otherwise.
+    #[default]
+    Auto,
+    /// No cap: the block follows the exemplar's objects alone, however often a window
+    /// then shows them again.
+    Off,
+    /// An N² window, asked for: refused with a block or border given, without
+    /// `stochastic`, or under the 32-px patch self-repetition compares.
+    Side(usize),
+}
+
+impl RepeatWindow {
+    /// The window's side, where it caps a scaled block.
+    pub fn side(self) -> Option<usize> {
+        match self {
+            RepeatWindow::Auto => Some(DEFAULT_REPEAT_WINDOW),
+            RepeatWindow::Off => None,
+            RepeatWindow::Side(n) => Some(n),
+        }
+    }
+}
+
+impl std::fmt::Display for RepeatWindow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RepeatWindow::Auto => f.write_str("auto"),
+            RepeatWindow::Off => f.write_str("off"),
+            RepeatWindow::Side(n) => write!(f, "{n}"),
+        }
+    }
+}
+
+impl std::str::FromStr for RepeatWindow {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<RepeatWindow, String> {
+        match text.trim() {
+            "auto" => Ok(RepeatWindow::Auto),
+            "off" => Ok(RepeatWindow::Off),
+            t => t.parse().map(RepeatWindow::Side).map_err(|_| {
+                format!("'{text}' is not a repeat window; expected auto, off or a side N in pixels")
+            }),
+        }
+    }
 }
 
 impl Default for RsgfOptions {
@@ -64,7 +113,7 @@ impl Default for RsgfOptions {
             stochastic: false,
             histogram: false,
             edges: Edges::Auto,
-            repeat_window: None,
+            repeat_window: RepeatWindow::Auto,
         }
     }
 }
@@ -85,7 +134,7 @@ impl RsgfOptions {
     fn params_with(&self, ex: Option<&Raster>, v1: (i64, i64), v2: (i64, i64)) -> RsgfParams {
         let (block_px, border_px) = match (self.block_px, self.border_px, ex) {
             (None, None, Some(ex)) if self.stochastic => {
-                let scale = stochastic_block_within(ex, self.repeat_window);
+                let scale = stochastic_block_within(ex, self.repeat_window.side());
                 (scale.block_px, scale.border_px)
             }
             (b, o, _) => (b.unwrap_or(DEFAULT_BLOCK), o.unwrap_or(DEFAULT_BORDER)),
@@ -154,6 +203,8 @@ pub struct BlockScale {
     pub border_px: usize,
     /// The cap [`repeat_block`] set for the window given, px (None: no window).
     pub repeat_cap_px: Option<usize>,
+    /// The block without that cap.
+    pub uncapped_px: usize,
 }
 
 /// The object scale of an exemplar: the first radius at which its autocorrelation
@@ -299,27 +350,30 @@ const COVERAGE_BINS: usize = 4096;
 /// even; border B / 4. Blocks smaller than the objects cut them into shards: the
 /// stone-wall photo enlarged 4× (624², stones of 100–200 px) came out in 40-px pieces
 /// of stones, and a 1024² photo of craters in 40-px blotches. The photos of 80–256 px
-/// in `tests/data` read 3–12 px and keep the paper's 40 and 10 px.
+/// in `tests/data` read 3–12 px and keep the paper's 40 and 10 px. This is the block
+/// without a repeat window (`--repeat-window off`); a bank's default caps it
+/// ([`stochastic_block_within`]).
 pub fn stochastic_block(ex: &Raster) -> BlockScale {
     stochastic_block_within(ex, None)
 }
 
 /// [`stochastic_block`], capped at [`repeat_block`] for a `window`² output and the
-/// exemplar's area where a window is given.
+/// exemplar's area where a window is given (a stochastic bank's default gives
+/// [`DEFAULT_REPEAT_WINDOW`]). Objects larger than the cap are cut: the trade is
+/// measured in docs/structure.md, "Block size against self-repetition".
 pub fn stochastic_block_within(ex: &Raster, window: Option<usize>) -> BlockScale {
     let scale_px = object_scale(ex);
     let want = (BLOCK_PER_SCALE * scale_px).round();
-    let mut cap = (ex.width.min(ex.height) / 3) as f64;
+    let room = (ex.width.min(ex.height) / 3) as f64;
     let repeat_cap_px = window.map(|n| repeat_block(n, ex.width * ex.height));
-    if let Some(b) = repeat_cap_px {
-        cap = cap.min(b as f64);
-    }
-    let block_px = (want.min(cap).max(DEFAULT_BLOCK as f64) as usize) & !1;
+    let even = |cap: f64| (want.min(cap).max(DEFAULT_BLOCK as f64) as usize) & !1;
+    let block_px = even(repeat_cap_px.map_or(room, |b| room.min(b as f64)));
     BlockScale {
         scale_px,
         block_px,
         border_px: block_px / 4,
         repeat_cap_px,
+        uncapped_px: even(room),
     }
 }
 
@@ -358,24 +412,25 @@ pub fn repeat_block(window: usize, area: usize) -> usize {
     b
 }
 
-/// The output side within which [`repetition_advice`] predicts self-repetition: issue
-/// 31's window for its bar.
-pub const ADVICE_WINDOW: usize = 1024;
+/// Issue 31's window for its self-repetition bar: the side of the window a stochastic
+/// bank's scaled block keeps its self-repetition within by default
+/// ([`RepeatWindow::Auto`]), and within which [`repetition_advice`] predicts it.
+pub const DEFAULT_REPEAT_WINDOW: usize = 1024;
 
 /// One line for the bake log where stochastic blocks of `block` px from an exemplar of
 /// `area` pixels are predicted to repeat over [`REPEAT_BAR`] within
-/// [`ADVICE_WINDOW`]² ([`predicted_self_repetition`]) and a smaller block would not:
-/// the prediction, and the `--repeat-window` cap ([`repeat_block`]) with its cost.
-/// `None` where the blocks stay within the bar (every photo of `tests/data`, with 40-px
-/// blocks, predicts at most 0.051: ((40 − 31)/40)²). The choice stays the user's
-/// (docs/structure.md, "Block size against self-repetition").
+/// [`DEFAULT_REPEAT_WINDOW`]² ([`predicted_self_repetition`]) and a smaller block would not:
+/// the prediction, and the default cap ([`repeat_block`]) with its cost. The bake logs it
+/// where `--repeat-window off` lifted the cap. `None` where the blocks stay within the
+/// bar (every photo of `tests/data`, with 40-px blocks, predicts at most 0.051:
+/// ((40 − 31)/40)²).
 pub fn repetition_advice(block: usize, area: usize) -> Option<String> {
-    let n = ADVICE_WINDOW;
+    let n = DEFAULT_REPEAT_WINDOW;
     let predicted = predicted_self_repetition(block, n, area);
     let cap = repeat_block(n, area);
     (predicted > REPEAT_BAR && cap < block).then(|| {
         format!(
-            "self-repetition within {n}² is predicted at {predicted:.2} with {block}-px blocks (bar {REPEAT_BAR}): --repeat-window {n} caps them at {cap} px (predicted {:.2}), which cuts objects larger than that",
+            "self-repetition within {n}² is predicted at {predicted:.2} with {block}-px blocks (bar {REPEAT_BAR}): --repeat-window auto ({n}) caps them at {cap} px (predicted {:.2}), which cuts objects larger than that",
             predicted_self_repetition(cap, n, area)
         )
     })
@@ -537,19 +592,26 @@ pub(crate) fn bake(
     // measured once, said, and fixed in the options every later step uses.
     let mut resolved = options.clone();
     if options.stochastic && options.block_px.is_none() && options.border_px.is_none() {
-        let scale = stochastic_block_within(ex, options.repeat_window);
-        let repeat = match (options.repeat_window, scale.repeat_cap_px) {
-            (Some(n), Some(cap)) => format!(
-                ", and at most {cap} px, where self-repetition within {n}² is predicted to stay within {REPEAT_BAR} (predicted {:.3})",
-                predicted_self_repetition(scale.block_px, n, w * h)
-            ),
+        let scale = stochastic_block_within(ex, options.repeat_window.side());
+        let repeat = match (options.repeat_window.side(), scale.repeat_cap_px) {
+            (Some(n), Some(cap)) => {
+                let off = if scale.uncapped_px > scale.block_px {
+                    format!("; --repeat-window off keeps {} px", scale.uncapped_px)
+                } else {
+                    String::new()
+                };
+                format!(
+                    ", and at most {cap} px, where self-repetition within {n}² is predicted to stay within {REPEAT_BAR} (predicted {:.3}{off})",
+                    predicted_self_repetition(scale.block_px, n, w * h)
+                )
+            }
             _ => String::new(),
         };
         progress(&format!(
             "blocks of {} px, border {} px: {BLOCK_PER_SCALE} × the object scale {:.0} px (autocorrelation below {SCALE_ACF}), kept within [{DEFAULT_BLOCK} px, a third of the shorter side]{repeat} (pass --block to choose)",
             scale.block_px, scale.border_px, scale.scale_px
         ));
-        if options.repeat_window.is_none()
+        if options.repeat_window == RepeatWindow::Off
             && let Some(line) = repetition_advice(scale.block_px, w * h)
         {
             progress(&line);
