@@ -44,9 +44,9 @@ pub struct RsgfOptions {
     /// exemplar's [`coverage_bias`]).
     pub edges: Edges,
     /// In stochastic mode with neither block nor border given: the window within which
-    /// self-repetition should stay within [`REPEAT_BAR`]; the scaled block is capped at
-    /// [`repeat_block`] for it. Default: issue 31's [`DEFAULT_REPEAT_WINDOW`]² (docs/structure.md,
-    /// "Block size against self-repetition").
+    /// self-repetition should stay within [`REPEAT_BAR`]; the scaled block is capped
+    /// at [`repeat_block`] for it. Default: issue 31's [`DEFAULT_REPEAT_WINDOW`]²
+    /// (docs/structure.md, "Block size against self-repetition").
     pub repeat_window: RepeatWindow,
 }
 
@@ -54,8 +54,8 @@ pub struct RsgfOptions {
 /// ([`RsgfOptions::repeat_window`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum RepeatWindow {
-    /// [`DEFAULT_REPEAT_WINDOW`]², where the block is scaled (stochastic, neither block nor
-    /// border given); nothing otherwise.
+    /// [`DEFAULT_REPEAT_WINDOW`]², where the block is scaled (stochastic, neither
+    /// block nor border given); nothing otherwise.
     #[default]
     Auto,
     /// No cap: the block follows the exemplar's objects alone, however often a window
@@ -419,9 +419,9 @@ pub const DEFAULT_REPEAT_WINDOW: usize = 1024;
 
 /// One line for the bake log where stochastic blocks of `block` px from an exemplar of
 /// `area` pixels are predicted to repeat over [`REPEAT_BAR`] within
-/// [`DEFAULT_REPEAT_WINDOW`]² ([`predicted_self_repetition`]) and a smaller block would not:
-/// the prediction, and the default cap ([`repeat_block`]) with its cost. The bake logs it
-/// where `--repeat-window off` lifted the cap. `None` where the blocks stay within the
+/// [`DEFAULT_REPEAT_WINDOW`]² ([`predicted_self_repetition`]) and a smaller block
+/// would not: the prediction, and the default cap ([`repeat_block`]) with its cost. The
+/// bake logs it where `--repeat-window off` lifted the cap. `None` where the blocks stay within the
 /// bar (every photo of `tests/data`, with 40-px blocks, predicts at most 0.051:
 /// ((40 − 31)/40)²).
 pub fn repetition_advice(block: usize, area: usize) -> Option<String> {
