@@ -62,7 +62,8 @@ pub enum RepeatWindow {
     /// then shows them again.
     Off,
     /// An N² window, asked for: refused with a block or border given, without
-    /// `stochastic`, or under the 32-px patch self-repetition compares.
+    /// `stochastic` (unless the method is `auto`), or under the 32-px patch
+    /// self-repetition compares.
     Side(usize),
 }
 
