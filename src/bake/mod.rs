@@ -439,7 +439,8 @@ impl Baker {
     /// filled (or refused), levelled, down-sampled. Returns the raster and its spacing in
     /// µm.
     pub fn preprocess(&self, image: &ImageFile, source: &str) -> Result<(Raster, Option<f64>)> {
-        self.preprocess_repeated(image, source, [1, 1])
+        let (raster, spacing, _) = self.preprocess_repeated(image, source, [1, 1])?;
+        Ok((raster, spacing))
     }
 
     /// [`Baker::preprocess`], the exemplar repeated `repeat` times along x and y as a
@@ -447,13 +448,15 @@ impl Baker {
     /// down-sampling and before a photo's flat field: a flat field fitted to one small
     /// period takes its motif for light (a 25-px cell's dark square is the first
     /// harmonic of its side), one fitted to the repeats leaves it, while a height map's
-    /// plane is taken off the period itself, not off a sawtooth of its copies.
+    /// plane is taken off the period itself, not off a sawtooth of its copies. Also
+    /// returns the form removal as the bank records it: the `--level` given, and where
+    /// the default meets a photo, what its flat field did.
     fn preprocess_repeated(
         &self,
         image: &ImageFile,
         source: &str,
         repeat: [usize; 2],
-    ) -> Result<(Raster, Option<f64>)> {
+    ) -> Result<(Raster, Option<f64>, String)> {
         let mut exemplar = std::borrow::Cow::Borrowed(&image.raster);
         let mut file_spacing = image.spacing_um;
         if let (None, true, Some(dx), Some(dy)) = (
@@ -499,12 +502,19 @@ impl Baker {
         if repeat != [1, 1] {
             raster = crate::bake::auto::repeat_torus(&raster, repeat);
         }
-        if flat_field {
-            crate::prep::level::flatten_illumination(
+        let level = if flat_field {
+            let done = crate::prep::level::flatten_illumination(
                 &mut raster,
                 crate::prep::level::ILLUMINATION_DEGREE,
             );
-        }
+            format!(
+                "{:?} (photo: flat field of degree {}: {done})",
+                self.leveling,
+                crate::prep::level::ILLUMINATION_DEGREE
+            )
+        } else {
+            format!("{:?}", self.leveling)
+        };
         let spacing = self
             .spacing_um
             .or(file_spacing)
@@ -519,21 +529,7 @@ impl Baker {
                 ),
             });
         }
-        Ok((raster, spacing))
-    }
-
-    /// The form removal as the bank records it: the `--level` given, and where the
-    /// default meets a photo (`raw` as read), the flat field that replaces it.
-    fn level_text(&self, raw: &Raster) -> String {
-        if self.leveling == crate::prep::Leveling::Auto && crate::bake::auto::is_photo(raw) {
-            format!(
-                "{:?} (photo: flat field of degree {})",
-                self.leveling,
-                crate::prep::level::ILLUMINATION_DEGREE
-            )
-        } else {
-            format!("{:?}", self.leveling)
-        }
+        Ok((raster, spacing, level))
     }
 
     /// The preprocessed exemplar, repeated `repeat` times as a torus
@@ -546,7 +542,7 @@ impl Baker {
         source: &str,
         repeat: [usize; 2],
     ) -> Result<(Raster, HeaderBase)> {
-        let (ex, spacing_um) = self.preprocess_repeated(image, source, repeat)?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, repeat)?;
         let mut info = exemplar_info(&ex, &image.raster, source);
         (info.width, info.height) = (ex.width / repeat[0], ex.height / repeat[1]);
         let repeated = if repeat == [1, 1] {
@@ -559,11 +555,8 @@ impl Baker {
             spacing_um,
             self.seed,
             format!(
-                "level={} downsample={} filter={:?} fill_missing={}{repeated}",
-                self.level_text(&image.raster),
-                self.downsample,
-                self.filter,
-                self.fill_missing
+                "level={level} downsample={} filter={:?} fill_missing={}{repeated}",
+                self.downsample, self.filter, self.fill_missing
             ),
         );
         Ok((ex, base))
@@ -661,7 +654,7 @@ impl Baker {
             }
             Method::Rpn | Method::Adsn => {}
         }
-        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1])?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         let side = |n: usize| (1usize << n.ilog2()).min(DEFAULT_MAX_PATCH);
         let [pw, ph] = match self.patch {
@@ -801,7 +794,7 @@ impl Baker {
                 self.method,
                 self.bank_size,
                 self.seed,
-                self.level_text(&image.raster),
+                level,
                 self.downsample,
                 self.filter,
                 self.fill_missing,
@@ -830,7 +823,7 @@ impl Baker {
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
         use crate::analysis::quilt::{WangLayout, wang_tiles};
-        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1])?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         let side = match self.patch {
             Some(p) => p,
@@ -894,7 +887,7 @@ impl Baker {
                 layout.edge,
                 layout.band,
                 self.seed,
-                self.level_text(&image.raster),
+                level,
                 self.downsample,
                 self.filter,
                 self.fill_missing
@@ -953,7 +946,7 @@ impl Baker {
         n_tiles: usize,
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
-        let (ex, spacing_um) = self.preprocess(image, source)?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1])?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         progress(&format!(
             "exemplar {w}×{h}×{c}; roller with {n_tiles} tile(s)"
@@ -1099,7 +1092,7 @@ impl Baker {
                 rt.overlap,
                 rt.origins,
                 rt.phase,
-                self.level_text(&image.raster),
+                level,
                 self.downsample,
                 self.filter,
                 self.fill_missing

@@ -336,38 +336,168 @@ pub const ILLUMINATION_DEGREE: u8 = 2;
 /// all three channels), came out with pale pink and blue rectangles in its white, one
 /// per block: the polynomial, fitted to where the discs lie, had been taken off the
 /// white too.
-pub fn flatten_illumination(raster: &mut Raster, degree: u8) {
+///
+/// **A coloured form is content, not light.** Light scales every channel alike; where
+/// the channels' forms differ by more than [`LIGHT_COLOUR_RATIO`] ([`form_colour_ratio`]),
+/// the form is a large coloured object (a cloud of pink smoke, a red letter painted on
+/// bark), and taking it off would tint every block by where it came from. The photo
+/// then stays as read ([`FlatField::Coloured`]). A grey photo cannot tell, and is
+/// flat-fielded.
+pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
     let wraps = [tiles_along(raster, 0), tiles_along(raster, 1)];
     let clipped = clipped_pixels(raster);
-    for c in 0..raster.channels {
-        let mut plane = raster.channel_f64(c);
-        let (lo, hi) = plane
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
-        if lo >= hi {
+    // Per channel: its samples (clipped ones as NaN), its range, its form and the form's
+    // mean over the samples it moves; None for a channel that holds one value.
+    let fits: Vec<Option<ChannelForm>> = (0..raster.channels)
+        .map(|c| {
+            let plane = raster.channel_f64(c);
+            let (lo, hi) = plane
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+            if lo >= hi {
+                return None;
+            }
+            let lit: Vec<f64> = plane
+                .iter()
+                .zip(&clipped)
+                .map(|(&z, &k)| if k { f64::NAN } else { z })
+                .collect();
+            let form = fit_form(&lit, raster.width, degree, wraps);
+            let (sum, n) = lit
+                .iter()
+                .zip(&form)
+                .filter(|(z, f)| z.is_finite() && f.is_finite())
+                .fold((0.0, 0usize), |(s, n), (_, f)| (s + f, n + 1));
+            Some(ChannelForm {
+                lit,
+                form,
+                mean: sum / n.max(1) as f64,
+                range: (lo, hi),
+            })
+        })
+        .collect();
+    let ratio = form_colour_ratio(&fits);
+    if let Some(r) = ratio
+        && r > LIGHT_COLOUR_RATIO
+    {
+        return FlatField::Coloured(r);
+    }
+    for (c, fit) in fits.into_iter().enumerate() {
+        let Some(ChannelForm {
+            lit,
+            form,
+            mean,
+            range: (lo, hi),
+        }) = fit
+        else {
             continue;
-        }
-        let lit: Vec<f64> = plane
-            .iter()
-            .zip(&clipped)
-            .map(|(&z, &k)| if k { f64::NAN } else { z })
-            .collect();
-        let form = fit_form(&lit, raster.width, degree, wraps);
-        // The form's mean over the samples it moves, so that their mean stays.
-        let (sum, n) = lit
-            .iter()
-            .zip(&form)
-            .filter(|(z, f)| z.is_finite() && f.is_finite())
-            .fold((0.0, 0usize), |(s, n), (_, f)| (s + f, n + 1));
-        let mean = sum / n.max(1) as f64;
-        for ((z, f), &k) in plane.iter_mut().zip(&form).zip(&clipped) {
-            if !k && z.is_finite() && f.is_finite() {
+        };
+        let mut plane = raster.channel_f64(c);
+        for ((z, f), l) in plane.iter_mut().zip(&form).zip(&lit) {
+            // Clipped samples are NaN in `lit` and keep their values.
+            if l.is_finite() && f.is_finite() {
                 *z = (*z - (f - mean)).clamp(lo, hi);
             }
         }
         raster.set_channel_f64(c, &plane);
     }
+    FlatField::Applied(ratio)
+}
+
+/// One channel's fit for [`flatten_illumination`].
+struct ChannelForm {
+    /// The channel's samples, NaN where clipped.
+    lit: Vec<f64>,
+    /// Its fitted form.
+    form: Vec<f64>,
+    /// The form's mean over the samples it moves (the channel's mean there).
+    mean: f64,
+    /// The channel's range over its finite samples.
+    range: (f64, f64),
+}
+
+/// What [`flatten_illumination`] did, with the photo's [`form_colour_ratio`] where it
+/// has one (two channels or more with a positive mean).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FlatField {
+    /// The form was taken off as light.
+    Applied(Option<f64>),
+    /// The form changes the colour more than light does (ratio above
+    /// [`LIGHT_COLOUR_RATIO`]): it is the photo's content, and the photo stays as read.
+    Coloured(f64),
+}
+
+/// What the flat field did, as the bank's header records it.
+impl std::fmt::Display for FlatField {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FlatField::Applied(None) => write!(f, "flat-fielded"),
+            FlatField::Applied(Some(r)) => {
+                write!(
+                    f,
+                    "flat-fielded, colour ratio {r:.2} <= {LIGHT_COLOUR_RATIO}"
+                )
+            }
+            FlatField::Coloured(r) => write!(
+                f,
+                "kept as read, colour ratio {r:.2} > {LIGHT_COLOUR_RATIO}: its form is coloured content, not light"
+            ),
+        }
+    }
+}
+
+/// The largest [`form_colour_ratio`] a flat field still takes for light.
+///
+/// Light is a gain on every channel alike: under a pure gain the ratio is 0. Measured
+/// as bake prepares them (docs/structure.md, "The flat field and colour"):
+/// - photos whose forms look like light read 0.02–0.2: GIMP's `cracked` 0.02, `rock`
+///   and `stone33` 0.13, Embark's `bricks.png` 0.16;
+/// - up to 0.69 where a darker part is also more saturated, as a gain on sRGB levels
+///   through a camera's tone curve does (GIMP's `wood1` 0.66, whose light falls by 41%
+///   of its standard deviation, and whose flat field took W1 at 512² from 0.17 to 0.02);
+/// - 0.76 and above where the form is a large coloured object: Embark's pink smoke
+///   (`2.jpg`) 0.79, its ink in water 0.76–1.12, its bark with a red Z painted on
+///   (`3.jpg`) 2.44. Flat-fielded, those came out in tinted rectangles: pink ones in
+///   the smoke's white, green and red ones on the bark, grey-brown where the ink's
+///   black had been.
+///
+/// Of 113 photos (Embark's 10, the 42 ETR terrains, the 58 GIMP patterns, scikit-image's
+/// 3), 21 read above 0.75: 9 of Embark's 10 (not `bricks.png`) and 12 GIMP patterns
+/// (among them `rain` 0.83, whose blue is clipped at 255 in half its pixels, and
+/// `wood2` 1.16). No ETR terrain does (the highest, `snow`, 0.74, has a form of a tenth
+/// of its standard deviation).
+pub const LIGHT_COLOUR_RATIO: f64 = 0.75;
+
+/// How far a photo's per-channel forms are from one gain on every channel: with the
+/// relative form r_c(x) = (f_c(x) − m_c) / m_c of each channel c (m_c its mean over the
+/// fitted samples) and its mean over the channels a(x), the RMS of r_c(x) − a(x) over
+/// its RMS of a(x), over the samples that every channel fitted. 0 for light (every
+/// channel scaled alike), large where the form changes the colour. `None` with fewer
+/// than two channels of positive mean (a grey photo cannot tell), or no form at all.
+fn form_colour_ratio(fits: &[Option<ChannelForm>]) -> Option<f64> {
+    let used: Vec<&ChannelForm> = fits.iter().flatten().filter(|f| f.mean > 0.0).collect();
+    if used.len() < 2 {
+        return None;
+    }
+    let k = used.len() as f64;
+    let (mut colour, mut gain) = (0.0, 0.0);
+    let mut r = vec![0.0; used.len()];
+    for i in 0..used[0].form.len() {
+        if used
+            .iter()
+            .any(|f| !(f.lit[i].is_finite() && f.form[i].is_finite()))
+        {
+            continue;
+        }
+        for (rc, f) in r.iter_mut().zip(&used) {
+            *rc = (f.form[i] - f.mean) / f.mean;
+        }
+        let a = r.iter().sum::<f64>() / k;
+        gain += a * a;
+        colour += r.iter().map(|rc| (rc - a) * (rc - a)).sum::<f64>() / k;
+    }
+    (gain > 0.0).then(|| (colour / gain).sqrt())
 }
 
 /// The share of a photo's pixels that must sit at one end of its range, in every
@@ -484,9 +614,11 @@ mod tests {
         }
     }
 
-    /// A texture under a light that falls across the frame: the flat field takes the
-    /// light away (the texture comes back within 1% of its amplitude), keeps the
-    /// channel's mean within a thousandth of a level, and stays within its range.
+    /// A texture under a light that falls across the frame, in two channels, the second
+    /// at half the first's level (one light scales both, so the form is not coloured):
+    /// the flat field takes the light away (the texture comes back within 1% of its
+    /// amplitude), keeps the channel's mean within a thousandth of a level, and stays
+    /// within its range.
     #[test]
     fn the_flat_field_removes_falling_light_and_keeps_the_mean() {
         let (w, h) = (96, 80);
@@ -496,11 +628,15 @@ mod tests {
             .flat_map(|i| {
                 let (x, y) = ((i % w) as f64, (i / w) as f64);
                 let v = 120.0 + texture(x, y) + light(x, y);
-                [v as f32, (255.0 - v) as f32]
+                [v as f32, (0.5 * v) as f32]
             })
             .collect();
         let mut r = Raster::from_vec(w, h, 2, lit.clone()).unwrap();
-        flatten_illumination(&mut r, ILLUMINATION_DEGREE);
+        let done = flatten_illumination(&mut r, ILLUMINATION_DEGREE);
+        assert!(
+            matches!(done, FlatField::Applied(Some(q)) if q < 1e-6),
+            "{done:?}"
+        );
         for c in 0..2 {
             let (before, after) = (
                 lit.iter()
@@ -520,12 +656,12 @@ mod tests {
                 .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
             assert!(after.iter().all(|&v| (lo..=hi).contains(&v)));
             // What is left is the texture about a constant (sign per channel).
-            let sign = if c == 0 { 1.0 } else { -1.0 };
+            let scale = if c == 0 { 1.0 } else { 0.5 };
             let m = mean(&after);
             let worst = (0..w * h)
                 .map(|i| {
                     let (x, y) = ((i % w) as f64, (i / w) as f64);
-                    (after[i] - m - sign * texture(x, y)).abs()
+                    (after[i] - m - scale * texture(x, y)).abs()
                 })
                 .fold(0.0f64, f64::max);
             assert!(
@@ -533,6 +669,54 @@ mod tests {
                 "channel {c}: {worst} from the texture"
             );
         }
+    }
+
+    /// A red blot painted on grey-brown bark, as on Embark's `3.jpg`: the fitted forms
+    /// raise red and lower green and blue where the blot is, which no light does
+    /// (colour ratio far above [`LIGHT_COLOUR_RATIO`]), so the photo stays exactly as
+    /// read. The same blot darker in every channel, the shape a light could have, is
+    /// flat-fielded (ratio under 0.2), and so is a one-channel photo, which cannot tell.
+    #[test]
+    fn a_coloured_form_is_content_and_the_photo_stays_as_read() {
+        let (w, h) = (90, 70);
+        // The blot's cover: 1 near (65, 35), falling off over about 20 px.
+        let cover = |x: f64, y: f64| (-((x - 65.0).powi(2) + (y - 35.0).powi(2)) / 400.0).exp();
+        let pixels = |red: bool| -> Vec<f32> {
+            (0..w * h)
+                .flat_map(|i| {
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    let (t, d) = (0.08 * (0.7 * x).sin() * (0.9 * y).cos(), cover(x, y));
+                    let bark = [0.50 + t, 0.45 + t, 0.40 + t];
+                    let blot = if red {
+                        [0.85, 0.10, 0.12]
+                    } else {
+                        [0.20, 0.15, 0.10]
+                    };
+                    (0..3).map(move |c| (bark[c] * (1.0 - d) + blot[c] * d) as f32)
+                })
+                .collect()
+        };
+        let raw = Raster::from_vec(w, h, 3, pixels(true)).unwrap();
+        let mut kept = raw.clone();
+        match flatten_illumination(&mut kept, ILLUMINATION_DEGREE) {
+            FlatField::Coloured(q) => assert!(q > 2.0 * LIGHT_COLOUR_RATIO, "ratio {q}"),
+            other => panic!("a red blot was taken for light: {other:?}"),
+        }
+        assert_eq!(kept.data, raw.data);
+        let mut dark = Raster::from_vec(w, h, 3, pixels(false)).unwrap();
+        let before = dark.data.clone();
+        let done = flatten_illumination(&mut dark, ILLUMINATION_DEGREE);
+        assert!(
+            matches!(done, FlatField::Applied(Some(q)) if q < 0.2),
+            "{done:?}"
+        );
+        assert_ne!(dark.data, before);
+        let green: Vec<f32> = raw.channel_f64(1).iter().map(|&v| v as f32).collect();
+        let mut one = Raster::from_vec(w, h, 1, green).unwrap();
+        assert_eq!(
+            flatten_illumination(&mut one, ILLUMINATION_DEGREE),
+            FlatField::Applied(None)
+        );
     }
 
     /// A bowl (degree 2) plus a known roughness: `poly:2` leaves the roughness, whose

@@ -22,7 +22,9 @@ pub const MAX_VALUE: f32 = 1e30;
 pub enum Leveling {
     /// Subtract the least-squares plane from height maps (1 channel), leave colour as is.
     /// Bake flat-fields photos instead (colour, or grey in 8-bit levels: the light
-    /// falling across the frame goes, the mean stays; [`level::flatten_illumination`]).
+    /// falling across the frame goes, the mean stays; a colour photo whose form changes
+    /// its colour, not only its brightness, is content and stays as read;
+    /// [`level::flatten_illumination`]).
     Auto,
     /// Always subtract the least-squares plane (`poly:1`).
     Plane,
