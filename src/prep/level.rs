@@ -655,7 +655,7 @@ mod tests {
                 .iter()
                 .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
             assert!(after.iter().all(|&v| (lo..=hi).contains(&v)));
-            // What is left is the texture about a constant (sign per channel).
+            // What is left is the texture about a constant (at the channel's scale).
             let scale = if c == 0 { 1.0 } else { 0.5 };
             let m = mean(&after);
             let worst = (0..w * h)
