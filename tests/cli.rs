@@ -1570,6 +1570,56 @@ fn stats_of_one_map_names_its_operators() {
     );
 }
 
+/// The bake log and the bank's header say what the flat field did: GIMP's `cracked`,
+/// whose form is one gain on every channel (colour ratio 0.02), is flat-fielded; its
+/// `rain`, whose blue stays while red and green fall across the frame (0.83), is kept as
+/// read (`prep::level::LIGHT_COLOUR_RATIO`, 0.75): its bank records the photo's own
+/// standard deviation per channel, where the flat-fielded crack's differs.
+#[test]
+fn bake_says_whether_a_photo_was_flat_fielded() {
+    let dir = tempfile::tempdir().unwrap();
+    let bake = |file: &str, out: &str| {
+        let photo = common::repo(file).display().to_string();
+        let r = surftile(
+            dir.path(),
+            &["bake", &photo, "--method", "rpn", "--out", out],
+        );
+        assert_eq!(r.code, 0, "{}", r.stderr);
+        (r.stderr, Bank::read(&dir.path().join(out)).unwrap())
+    };
+    // Per channel standard deviation of a photo as read, as the bank records it.
+    let std_as_read = |file: &str| -> Vec<f64> {
+        let raw =
+            surftile::io::read_image(&common::repo(file), &surftile::io::ReadOptions::default())
+                .unwrap()
+                .raster;
+        (0..raw.channels)
+            .map(|c| {
+                let v = raw.channel_f64(c);
+                let m = v.iter().sum::<f64>() / v.len() as f64;
+                (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+            })
+            .collect()
+    };
+    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6 * y);
+    let (log, bank) = bake("tests/data/gimp-crack.png", "crack.bank");
+    let said = "photo: flat field of degree 2: flat-fielded, colour ratio 0.02 <= 0.75";
+    assert!(log.contains(said), "{log}");
+    assert!(bank.header.bake.contains(said), "{}", bank.header.bake);
+    let read = std_as_read("tests/data/gimp-crack.png");
+    assert!(!same(&bank.header.exemplar.std, &read), "{read:?}");
+    let (log, bank) = bake("tests/data/gimp-rain.png", "rain.bank");
+    let said = "photo: flat field of degree 2: kept as read, colour ratio 0.83 > 0.75";
+    assert!(log.contains(said), "{log}");
+    assert!(bank.header.bake.contains(said), "{}", bank.header.bake);
+    let read = std_as_read("tests/data/gimp-rain.png");
+    assert!(
+        same(&bank.header.exemplar.std, &read),
+        "{:?} against {read:?}",
+        bank.header.exemplar.std
+    );
+}
+
 /// A grey photo's synthesis keeps the photo's levels in a 16-bit PNG, as colour does
 /// (level = v / 255 · 65535, within one level of the float render), where a height map's
 /// render is stretched to black and white: a dark 8-bit slate photo (levels 34–119) once

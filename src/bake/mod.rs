@@ -439,7 +439,7 @@ impl Baker {
     /// filled (or refused), levelled, down-sampled. Returns the raster and its spacing in
     /// µm.
     pub fn preprocess(&self, image: &ImageFile, source: &str) -> Result<(Raster, Option<f64>)> {
-        let (raster, spacing, _) = self.preprocess_repeated(image, source, [1, 1])?;
+        let (raster, spacing, _) = self.preprocess_repeated(image, source, [1, 1], &mut |_| {})?;
         Ok((raster, spacing))
     }
 
@@ -450,12 +450,13 @@ impl Baker {
     /// harmonic of its side), one fitted to the repeats leaves it, while a height map's
     /// plane is taken off the period itself, not off a sawtooth of its copies. Also
     /// returns the form removal as the bank records it: the `--level` given, and where
-    /// the default meets a photo, what its flat field did.
+    /// the default meets a photo, what its flat field did, which `progress` also gets.
     fn preprocess_repeated(
         &self,
         image: &ImageFile,
         source: &str,
         repeat: [usize; 2],
+        progress: &mut dyn FnMut(&str),
     ) -> Result<(Raster, Option<f64>, String)> {
         let mut exemplar = std::borrow::Cow::Borrowed(&image.raster);
         let mut file_spacing = image.spacing_um;
@@ -507,11 +508,12 @@ impl Baker {
                 &mut raster,
                 crate::prep::level::ILLUMINATION_DEGREE,
             );
-            format!(
-                "{:?} (photo: flat field of degree {}: {done})",
-                self.leveling,
+            let done = format!(
+                "photo: flat field of degree {}: {done}",
                 crate::prep::level::ILLUMINATION_DEGREE
-            )
+            );
+            progress(&done);
+            format!("{:?} ({done})", self.leveling)
         } else {
             format!("{:?}", self.leveling)
         };
@@ -541,8 +543,9 @@ impl Baker {
         image: &ImageFile,
         source: &str,
         repeat: [usize; 2],
+        progress: &mut dyn FnMut(&str),
     ) -> Result<(Raster, HeaderBase)> {
-        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, repeat)?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, repeat, progress)?;
         let mut info = exemplar_info(&ex, &image.raster, source);
         (info.width, info.height) = (ex.width / repeat[0], ex.height / repeat[1]);
         let repeated = if repeat == [1, 1] {
@@ -590,7 +593,8 @@ impl Baker {
         if choice.repeat != [1, 1] {
             // Only stochastic RSGF takes a repeated exemplar (`auto::choose_stochastic`,
             // which bounded the repeats' size).
-            let (torus, base) = self.preprocess_with_header(image, source, choice.repeat)?;
+            let (torus, base) =
+                self.preprocess_with_header(image, source, choice.repeat, progress)?;
             return crate::bake::rsgf::bake(&torus, &baker.rsgf, None, source, base, progress);
         }
         baker.bake(image, source, progress)
@@ -615,7 +619,7 @@ impl Baker {
                 ));
             }
             Method::Rsgf => {
-                let (ex, base) = self.preprocess_with_header(image, source, [1, 1])?;
+                let (ex, base) = self.preprocess_with_header(image, source, [1, 1], progress)?;
                 return crate::bake::rsgf::bake(
                     &ex,
                     &self.rsgf,
@@ -626,7 +630,7 @@ impl Baker {
                 );
             }
             Method::Synth => {
-                let (ex, base) = self.preprocess_with_header(image, source, [1, 1])?;
+                let (ex, base) = self.preprocess_with_header(image, source, [1, 1], progress)?;
                 return crate::bake::synth::bake_synth(&ex, &self.synth, base, progress);
             }
             Method::Auto => {
@@ -654,7 +658,7 @@ impl Baker {
             }
             Method::Rpn | Method::Adsn => {}
         }
-        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1])?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1], progress)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         let side = |n: usize| (1usize << n.ilog2()).min(DEFAULT_MAX_PATCH);
         let [pw, ph] = match self.patch {
@@ -823,7 +827,7 @@ impl Baker {
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
         use crate::analysis::quilt::{WangLayout, wang_tiles};
-        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1])?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1], progress)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         let side = match self.patch {
             Some(p) => p,
@@ -946,7 +950,7 @@ impl Baker {
         n_tiles: usize,
         progress: &mut dyn FnMut(&str),
     ) -> Result<Bank> {
-        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1])?;
+        let (ex, spacing_um, level) = self.preprocess_repeated(image, source, [1, 1], progress)?;
         let (w, h, c) = (ex.width, ex.height, ex.channels);
         progress(&format!(
             "exemplar {w}×{h}×{c}; roller with {n_tiles} tile(s)"

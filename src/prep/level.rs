@@ -346,8 +346,9 @@ pub const ILLUMINATION_DEGREE: u8 = 2;
 pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
     let wraps = [tiles_along(raster, 0), tiles_along(raster, 1)];
     let clipped = clipped_pixels(raster);
-    // Per channel: its samples (clipped ones as NaN), its range, its form and the form's
-    // mean over the samples it moves; None for a channel that holds one value.
+    // Per channel: its form, the form's mean over the samples it moves and the channel's
+    // range; None for a channel that holds one value. Only the forms are kept for all
+    // channels at once (the ratio needs them together); the samples are read again.
     let fits: Vec<Option<ChannelForm>> = (0..raster.channels)
         .map(|c| {
             let plane = raster.channel_f64(c);
@@ -358,11 +359,8 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
             if lo >= hi {
                 return None;
             }
-            let lit: Vec<f64> = plane
-                .iter()
-                .zip(&clipped)
-                .map(|(&z, &k)| if k { f64::NAN } else { z })
-                .collect();
+            drop(plane);
+            let lit = lit_samples(raster, &clipped, c);
             let form = fit_form(&lit, raster.width, degree, wraps);
             let (sum, n) = lit
                 .iter()
@@ -370,14 +368,13 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
                 .filter(|(z, f)| z.is_finite() && f.is_finite())
                 .fold((0.0, 0usize), |(s, n), (_, f)| (s + f, n + 1));
             Some(ChannelForm {
-                lit,
                 form,
                 mean: sum / n.max(1) as f64,
                 range: (lo, hi),
             })
         })
         .collect();
-    let ratio = form_colour_ratio(&fits);
+    let ratio = form_colour_ratio(raster, &clipped, &fits);
     if let Some(r) = ratio
         && r > LIGHT_COLOUR_RATIO
     {
@@ -385,7 +382,6 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
     }
     for (c, fit) in fits.into_iter().enumerate() {
         let Some(ChannelForm {
-            lit,
             form,
             mean,
             range: (lo, hi),
@@ -393,6 +389,7 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
         else {
             continue;
         };
+        let lit = lit_samples(raster, &clipped, c);
         let mut plane = raster.channel_f64(c);
         for ((z, f), l) in plane.iter_mut().zip(&form).zip(&lit) {
             // Clipped samples are NaN in `lit` and keep their values.
@@ -405,11 +402,19 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
     FlatField::Applied(ratio)
 }
 
+/// Channel `c` of `raster` as f64, NaN where `clipped`: the samples a flat field fits.
+fn lit_samples(raster: &Raster, clipped: &[bool], c: usize) -> Vec<f64> {
+    raster
+        .channel_f64(c)
+        .into_iter()
+        .zip(clipped)
+        .map(|(z, &k)| if k { f64::NAN } else { z })
+        .collect()
+}
+
 /// One channel's fit for [`flatten_illumination`].
 struct ChannelForm {
-    /// The channel's samples, NaN where clipped.
-    lit: Vec<f64>,
-    /// Its fitted form.
+    /// The channel's fitted form (NaN-free where the channel's samples are finite).
     form: Vec<f64>,
     /// The form's mean over the samples it moves (the channel's mean there).
     mean: f64,
@@ -472,25 +477,35 @@ pub const LIGHT_COLOUR_RATIO: f64 = 0.75;
 /// How far a photo's per-channel forms are from one gain on every channel: with the
 /// relative form r_c(x) = (f_c(x) − m_c) / m_c of each channel c (m_c its mean over the
 /// fitted samples) and its mean over the channels a(x), the RMS of r_c(x) − a(x) over
-/// its RMS of a(x), over the samples that every channel fitted. 0 for light (every
-/// channel scaled alike), large where the form changes the colour. `None` with fewer
-/// than two channels of positive mean (a grey photo cannot tell), or no form at all.
-fn form_colour_ratio(fits: &[Option<ChannelForm>]) -> Option<f64> {
-    let used: Vec<&ChannelForm> = fits.iter().flatten().filter(|f| f.mean > 0.0).collect();
+/// its RMS of a(x), over the samples that every channel fitted (finite and not
+/// `clipped`). 0 for light (every channel scaled alike), large where the form changes
+/// the colour. `None` with fewer than two channels of positive mean (a grey photo cannot
+/// tell), or no form at all.
+fn form_colour_ratio(
+    raster: &Raster,
+    clipped: &[bool],
+    fits: &[Option<ChannelForm>],
+) -> Option<f64> {
+    let used: Vec<(usize, &ChannelForm)> = fits
+        .iter()
+        .enumerate()
+        .filter_map(|(c, f)| f.as_ref().filter(|f| f.mean > 0.0).map(|f| (c, f)))
+        .collect();
     if used.len() < 2 {
         return None;
     }
-    let k = used.len() as f64;
+    let (k, channels) = (used.len() as f64, raster.channels);
     let (mut colour, mut gain) = (0.0, 0.0);
     let mut r = vec![0.0; used.len()];
-    for i in 0..used[0].form.len() {
-        if used
-            .iter()
-            .any(|f| !(f.lit[i].is_finite() && f.form[i].is_finite()))
+    for (i, &k_clipped) in clipped.iter().enumerate() {
+        if k_clipped
+            || used.iter().any(|&(c, f)| {
+                !(raster.data[i * channels + c].is_finite() && f.form[i].is_finite())
+            })
         {
             continue;
         }
-        for (rc, f) in r.iter_mut().zip(&used) {
+        for (rc, (_, f)) in r.iter_mut().zip(&used) {
             *rc = (f.form[i] - f.mean) / f.mean;
         }
         let a = r.iter().sum::<f64>() / k;
