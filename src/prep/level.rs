@@ -348,7 +348,7 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
     let clipped = clipped_pixels(raster);
     // Per channel: its form, the form's mean over the samples it moves and the channel's
     // range; None for a channel that holds one value. Only the forms are kept for all
-    // channels at once (the ratio needs them together); the samples are read again.
+    // channels at once (the ratio needs them together).
     let fits: Vec<Option<ChannelForm>> = (0..raster.channels)
         .map(|c| {
             let plane = raster.channel_f64(c);
@@ -359,8 +359,11 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
             if lo >= hi {
                 return None;
             }
-            drop(plane);
-            let lit = lit_samples(raster, &clipped, c);
+            let lit: Vec<f64> = plane
+                .into_iter()
+                .zip(&clipped)
+                .map(|(z, &k)| if k { f64::NAN } else { z })
+                .collect();
             let form = fit_form(&lit, raster.width, degree, wraps);
             let (sum, n) = lit
                 .iter()
@@ -389,27 +392,16 @@ pub fn flatten_illumination(raster: &mut Raster, degree: u8) -> FlatField {
         else {
             continue;
         };
-        let lit = lit_samples(raster, &clipped, c);
         let mut plane = raster.channel_f64(c);
-        for ((z, f), l) in plane.iter_mut().zip(&form).zip(&lit) {
-            // Clipped samples are NaN in `lit` and keep their values.
-            if l.is_finite() && f.is_finite() {
+        for ((z, f), &k) in plane.iter_mut().zip(&form).zip(&clipped) {
+            // Clipped samples keep their values.
+            if !k && z.is_finite() && f.is_finite() {
                 *z = (*z - (f - mean)).clamp(lo, hi);
             }
         }
         raster.set_channel_f64(c, &plane);
     }
     FlatField::Applied(ratio)
-}
-
-/// Channel `c` of `raster` as f64, NaN where `clipped`: the samples a flat field fits.
-fn lit_samples(raster: &Raster, clipped: &[bool], c: usize) -> Vec<f64> {
-    raster
-        .channel_f64(c)
-        .into_iter()
-        .zip(clipped)
-        .map(|(z, &k)| if k { f64::NAN } else { z })
-        .collect()
 }
 
 /// One channel's fit for [`flatten_illumination`].
