@@ -469,9 +469,10 @@ fn bank_values_are_held_to_the_bakes_bounds() {
 
 /// Found by the `npy` fuzz target: a shape whose element count passes 2⁶⁴
 /// (`tests/data/bad/npy-shape-product-overflow.npy`, its crash input) overflowed inside
-/// npyz before any check of ours (a panic in debug builds); a version-2 header claiming
-/// 4 GiB made npyz allocate it; a deeply nested header hung its parser. All are refused
-/// from the header alone.
+/// npyz before any check of ours (a panic in debug builds), and so did one with a zero
+/// among dimensions whose other product passes it (`npy-zero-dimension-overflow.npy`);
+/// a version-2 header claiming 4 GiB made npyz allocate it; a deeply nested header hung
+/// its parser. All are refused from the header alone.
 #[test]
 fn npy_headers_are_checked_before_npyz_reads_them() {
     let crash = std::fs::read(common::repo(
@@ -482,6 +483,19 @@ fn npy_headers_are_checked_before_npyz_reads_them() {
         read_image_bytes(&crash, Format::Npy, "c.npy", &ReadOptions::default()).unwrap_err(),
     );
     assert!(e.contains("element count"), "{e}");
+    // Found by the same target later: a zero among the dimensions kept the element count
+    // at 0, but npyz multiplies the others first (shape (0, 8209644704054465877, 5)).
+    let zero = std::fs::read(common::repo(
+        "tests/data/bad/npy-zero-dimension-overflow.npy",
+    ))
+    .unwrap();
+    let e = one_line(
+        read_image_bytes(&zero, Format::Npy, "z.npy", &ReadOptions::default()).unwrap_err(),
+    );
+    assert!(
+        e.starts_with("z.npy") && e.contains("non-zero dimensions multiply past"),
+        "{e}"
+    );
     let mut huge_header = b"\x93NUMPY\x02\x00".to_vec();
     huge_header.extend_from_slice(&u32::MAX.to_le_bytes());
     huge_header.extend_from_slice(b"{'descr'");

@@ -50,7 +50,8 @@ fn nesting_depth(text: &[u8]) -> usize {
 /// allocates whatever header length the file states (up to 4 GiB for a 12-byte file) and
 /// multiplies the dimensions unchecked (a product past 2⁶⁴ wraps in release builds and
 /// panics in debug ones). The header text is parsed with `py_literal`, the parser npyz
-/// itself uses; the element count is then computed with checked arithmetic.
+/// itself uses; the product of the non-zero dimensions, which bounds every partial
+/// product npyz forms, is then computed with checked arithmetic.
 fn check_header(bytes: &[u8], what: &str) -> Result<()> {
     use py_literal::Value;
     let bad = |m: String| Err(Error::decode(what, m));
@@ -104,17 +105,21 @@ fn check_header(bytes: &[u8], what: &str) -> Result<()> {
     let Some(Value::Tuple(dims)) = shape else {
         return bad("the .npy header has no shape tuple".into());
     };
+    // npyz multiplies the dimensions in both orders (its strides, C or Fortran), so a
+    // zero among them does not save a product of the others that passes 2⁶⁴: the npy
+    // fuzz target's (0, 8209644704054465877, 5) overflowed at 5 × 8.2·10¹⁸. Every
+    // partial product is at most the product of the non-zero dimensions.
     let mut count = Some(1u64);
     for d in dims {
         let dim = match d {
             Value::Integer(i) => u64::try_from(i).ok(),
             _ => None,
         };
-        count = count.zip(dim).and_then(|(n, d)| n.checked_mul(d));
+        count = count.zip(dim).and_then(|(n, d)| n.checked_mul(d.max(1)));
     }
     if count.is_none() {
         return bad(format!(
-            "array shape {}: the element count is not a whole number below 2⁶⁴",
+            "array shape {}: its non-zero dimensions multiply past 2⁶⁴; expected an element count below 2⁶⁴ (npyz multiplies them all)",
             Value::Tuple(dims.clone())
         ));
     }
