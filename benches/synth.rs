@@ -2,7 +2,8 @@
 //! exemplar (the scikit-image gravel photo, its grey copied to three channels), bake
 //! and fill together against Embark's texture-synthesis 0.8.2 on the same exemplar and
 //! output size, 2 threads each (target: ≥ 20× faster); the fill alone against a memcpy
-//! of the same bytes (target: ≥ 1 M samples/s on 2 cores); one `height()` at a point.
+//! of the same bytes (target: ≥ 1 M samples/s on 2 cores), and against the same fill
+//! with plain (not ragged) upsampling; one `height()` at a point.
 //!
 //! The same for stochastic RSGF with cuts (`rsgf_*`), the method `auto` picks for
 //! structured stochastic exemplars: bake (the model: mip chain, gap tables, spectra)
@@ -60,6 +61,22 @@ fn bench(c: &mut Criterion) {
                 .fill_threads(black_box(&region), &mut out, 2)
                 .unwrap()
         })
+    });
+    // The same fill with Lefebvre & Hoppe's plain upsampling: what ragged
+    // upsampling costs.
+    let plain = SynthSurface::new(
+        synth_model(
+            &ex,
+            &SynthParams {
+                ragged: 0.0,
+                ..params.clone()
+            },
+        )
+        .unwrap(),
+        1,
+    );
+    g.bench_function("fill_1024_rgb_2_threads_plain_upsampling", |b| {
+        b.iter(|| plain.fill_threads(black_box(&region), &mut out, 2).unwrap())
     });
     let src = vec![0.5f32; SIDE * SIDE * 3];
     g.bench_function("baseline_memcpy_1024_rgb", |b| {

@@ -91,6 +91,9 @@ struct Args {
     /// Synth: levels below the coarsest with jitter.
     #[arg(long, default_value_t = SynthParams::default().jitter_levels)]
     jitter_levels: usize,
+    /// Synth: ragged upsampling's probability (0: none).
+    #[arg(long, default_value_t = SynthParams::default().ragged)]
+    ragged: f64,
     /// Exemplars.
     exemplars: Vec<PathBuf>,
 }
@@ -175,6 +178,7 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
             coherence: args.coherence,
             fine_passes: args.fine_passes,
             jitter_levels: args.jitter_levels,
+            ragged: args.ragged,
             ..SynthParams::default()
         })
     };

@@ -298,6 +298,11 @@ enum Command {
         /// those of spacing ≥ 16 px, at least one).
         #[arg(long, default_value_t = SynthParams::default().jitter_levels, allow_negative_numbers = true)]
         jitter_levels: usize,
+        /// Synth: ragged upsampling, the probability (0 to 0.5) that a pixel continues
+        /// its neighbouring parent's patch, per axis, so that patch edges leave the
+        /// coarse levels' grid (0: Lefebvre & Hoppe's upsampling).
+        #[arg(long, default_value_t = SynthParams::default().ragged, allow_negative_numbers = true)]
+        ragged: f64,
     },
     /// Seed 000's sandblast pipeline: a height map of any size at any coarser spacing
     /// from one measurement (down-sample, then crop + RPN, or RPN patches EF-stitched).
@@ -712,7 +717,7 @@ fn main() -> ExitCode {
 }
 
 /// The library's parameter names, as its messages quote them, and this CLI's flags.
-const FLAGS: [(&str, &str); 33] = [
+const FLAGS: [(&str, &str); 34] = [
     ("fill_missing", "--fill-missing"),
     ("stochastic", "--stochastic"),
     ("lattice", "--lattice"),
@@ -746,6 +751,7 @@ const FLAGS: [(&str, &str); 33] = [
     ("appearance_dims", "--appearance-dims"),
     ("coherence", "--coherence"),
     ("jitter_levels", "--jitter-levels"),
+    ("ragged", "--ragged"),
 ];
 
 /// A library message in the CLI's words: each quoted parameter (`` `name` ``) becomes
@@ -1301,6 +1307,7 @@ fn run(command: Command) -> Result<()> {
             appearance_dims,
             coherence,
             jitter_levels,
+            ragged,
         } => {
             if method == Method::Milling {
                 return bake_milling(&exemplar, spacing, seed, &out);
@@ -1343,6 +1350,7 @@ fn run(command: Command) -> Result<()> {
                 appearance_dims,
                 coherence,
                 jitter_levels,
+                ragged,
             };
             if levels == Some(0) {
                 return Err(Error::param("levels", 0, "1 to 12 synthesis levels"));

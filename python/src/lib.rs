@@ -703,7 +703,7 @@ fn pair_param(name: &str, value: &Bound<'_, PyAny>, sep: char) -> PyResult<(i64,
 }
 
 /// The keywords `bake` takes besides method, spacing_um and seed: the CLI's flags.
-const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, repeat_window, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels";
+const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, repeat_window, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels, ragged";
 
 /// The builder with the keywords applied, in the order given.
 fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyResult<BakerBuilder> {
@@ -849,6 +849,10 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
             }
             "jitter_levels" => {
                 synth.jitter_levels = count_param(k, &v)?;
+                b
+            }
+            "ragged" => {
+                synth.ragged = float_param(k, &v)?;
                 b
             }
             other => {

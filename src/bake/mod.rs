@@ -275,7 +275,7 @@ impl BakerBuilder {
         )?;
         only(
             m == Synth || b.synth == crate::models::synth::SynthParams::default(),
-            "`levels`, `k`, `passes`, `fine_passes`, `jitter`, `appearance_dims`, `coherence` or `jitter_levels`",
+            "`levels`, `k`, `passes`, `fine_passes`, `jitter`, `appearance_dims`, `coherence`, `jitter_levels` or `ragged`",
             "synth",
         )?;
         if b.synth.levels != 0 {

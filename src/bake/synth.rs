@@ -48,13 +48,14 @@ pub fn bake_synth(
         seed,
         exemplar,
         bake: format!(
-            "method=synth levels={} k={} passes={} fine_passes={} jitter={} jitter_levels={} coherence={} appearance_dims={} {bake_text}",
+            "method=synth levels={} k={} passes={} fine_passes={} jitter={} jitter_levels={} ragged={} coherence={} appearance_dims={} {bake_text}",
             p.levels,
             p.k,
             p.passes,
             p.fine_passes,
             p.jitter,
             p.jitter_levels,
+            p.ragged,
             p.coherence,
             p.appearance_dims
         ),
