@@ -248,6 +248,18 @@ def test_a_python_bake_writes_the_cli_bank(cli, exemplar, tmp_path):
     assert auto.info["method"] == "rpn", auto.log
 
 
+def test_ragged_keyword_writes_the_cli_bank(cli, tmp_path):
+    ice = REPO / "tests/data/etr-ice01.png"
+    out = tmp_path / "cli.bank"
+    cli("bake", ice, "--method", "synth", "--ragged", 0.25, "--out", out)
+    bank = surftile.bake(str(ice), method="synth", ragged=0.25)
+    bank.save(tmp_path / "py.bank")
+    assert (tmp_path / "py.bank").read_bytes() == out.read_bytes()
+    assert "ragged=0.25" in bank.info["bake"], bank.info["bake"]
+    with pytest.raises(ValueError, match=r"ragged = 0.75: expected a probability from 0 to 0.5"):
+        surftile.bake(str(ice), method="synth", ragged=0.75)
+
+
 def test_edges_keyword_writes_the_cli_bank(cli, tmp_path):
     mud = REPO / "tests/data/gimp-dried-mud.png"
     for edges in ("reflect", "wrap"):
