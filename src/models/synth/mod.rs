@@ -11,10 +11,11 @@
 //! 2. **upsampling**: S_l(2p + Δ) = S_(l−1)(p) + h_l·Δ, Δ ∈ {0, 1}², plus, on the
 //!    levels below the coarsest down to spacing 16 px (`jitter_levels`), a hashed jitter
 //!    of up to `jitter`·h_l pixels per axis (2005, §3.1–3.2). On levels of spacing ≥ 2
-//!    px, each pixel instead continues, per axis with probability `ragged`, the patch of
-//!    the parent on its other side ("ragged upsampling", ours): S_l(q) = S_(l−1)(p′) +
-//!    h_l·(q − 2p′) with p′ the neighbouring parent, so that patch edges wander by a
-//!    level's spacing at every level instead of staying on the coarse levels' grid;
+//!    px, each pixel continues, per axis with probability `ragged`, the patch of the
+//!    parent on its other side instead of its own ("ragged upsampling", ours):
+//!    S_l(q) = S_(l−1)(p′) + h_l·(q − 2p′) with p′ that neighbouring parent. So patch
+//!    edges move by a level's spacing at every level instead of staying on the coarse
+//!    levels' grid;
 //! 3. **correction**, on levels of spacing ≤ 16 px (`CORRECT_MAX_SPACING`): `passes`
 //!    times (`fine_passes` on the two finest), in four sub-passes over the 2×2 parities of q, each
 //!    pixel takes the k-coherence candidate (2005, §3.3; the candidate sets are baked) whose
@@ -400,7 +401,8 @@ const SCAN: [(i32, i32); 9] = [
     (0, 1),
     (1, 1),
 ];
-/// Hash streams: one per level for the coarsest coordinates and the jitter.
+/// Hash streams: one per level for the coarsest coordinates, the jitter and the ragged
+/// upsampling's choice of parent.
 const STREAM_COARSE: u32 = 0x5359_0000;
 const STREAM_JITTER: u32 = 0x5359_1000;
 const STREAM_RAGGED: u32 = 0x5359_2000;
