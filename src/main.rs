@@ -298,9 +298,10 @@ enum Command {
         /// those of spacing ≥ 16 px, at least one).
         #[arg(long, default_value_t = SynthParams::default().jitter_levels, allow_negative_numbers = true)]
         jitter_levels: usize,
-        /// Synth: ragged upsampling, the probability (0 to 0.5) that a pixel continues
-        /// its neighbouring parent's patch, per axis, so that patch edges leave the
-        /// coarse levels' grid (0: Lefebvre & Hoppe's upsampling).
+        /// Synth: ragged upsampling, the probability (0 to 0.5) that a pixel of a level
+        /// of spacing ≥ 2 px continues its neighbouring parent's patch, per axis, so
+        /// that patch edges leave the coarse levels' grid (0: Lefebvre & Hoppe's
+        /// upsampling).
         #[arg(long, default_value_t = SynthParams::default().ragged, allow_negative_numbers = true)]
         ragged: f64,
     },

@@ -31,7 +31,8 @@
 //! texture-synthesis's 0.30 on the gravel photo, standard deviation −20%).
 //!
 //! A sub-pass reads only the eight neighbours of a pixel, so a region's pixels depend on
-//! the previous level within a margin of 4·passes pixels, and so on up: a region filled
+//! the previous level within a margin of 4·passes pixels (one more on a ragged level,
+//! whose pixels read the parents beside their own), and so on up: a region filled
 //! with its margins equals those pixels of the infinite texture bit for bit, in any split
 //! and on any thread count. The output is the exemplar's value at the final coordinates,
 //! so heights stay in their unit and colours stay exact. Zoomed-out regions (step ≥ 2)
