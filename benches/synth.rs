@@ -10,6 +10,12 @@
 //! and fill together, the fill alone (a fresh region each time, so no gap is
 //! remembered), and one sample at a random far point (its gaps and cuts solved cold).
 //!
+//! The same for quilted tiles (`quilting_*`, `bake --method quilting`): bake (the
+//! model: bases, FFT projections, k-d trees; then the penalty chosen by trial fills of
+//! 1024², as a bake without `--penalty` does) and fill together, the same with the
+//! penalty given (no trials), the fill alone (a fresh far region each time: every tile
+//! quilted cold) and one sample at a random far point (up to five tiles quilted cold).
+//!
 //! texture-synthesis takes about 40 s per 1024² output here, so its 10 samples alone
 //! take several minutes: `cargo bench --bench synth -- 'synth/(bake|fill|height|baseline_m)'`
 //! leaves it out.
@@ -24,6 +30,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use surftile::Raster;
 use surftile::bake::rsgf::RsgfOptions;
 use surftile::io::{ReadOptions, read_image};
+use surftile::models::quilting::{QuiltingModel, QuiltingParams, QuiltingSurface, choose_penalty};
 use surftile::models::rsgf::RsgfSurface;
 use surftile::models::synth::SynthParams;
 use surftile::models::synth::SynthSurface;
@@ -127,6 +134,43 @@ fn bench(c: &mut Criterion) {
             i += 1;
             let x = (i.wrapping_mul(0x9E37_79B9) % 1_000_000_000) as f64 + 0.5;
             rsgf_surface.sample_footprint(black_box(x), black_box(-3e8 + x), 1.0, &mut px);
+            px[0]
+        })
+    });
+    let qp = QuiltingParams::default();
+    g.bench_function("quilting_bake_and_fill_1024_rgb", |b| {
+        b.iter(|| {
+            let model = QuiltingModel::new(black_box(&ex), &qp, 2).unwrap();
+            let (model, _) = choose_penalty(model, 2).unwrap();
+            let s = QuiltingSurface::new(model, 1);
+            s.fill_threads(&region, &mut out, 2).unwrap();
+        })
+    });
+    g.bench_function("quilting_bake_and_fill_1024_rgb_penalty_given", |b| {
+        b.iter(|| {
+            let s = QuiltingSurface::new(QuiltingModel::new(black_box(&ex), &qp, 2).unwrap(), 1);
+            s.fill_threads(&region, &mut out, 2).unwrap();
+        })
+    });
+    let (qm, trials) = choose_penalty(QuiltingModel::new(&ex, &qp, 2).unwrap(), 2).unwrap();
+    eprintln!(
+        "quilting: penalty {} from trials {trials:?}",
+        qm.params.penalty
+    );
+    let quilted = QuiltingSurface::new(qm, 1);
+    let mut k = 0u64;
+    g.bench_function("quilting_fill_1024_rgb_2_threads", |b| {
+        b.iter(|| {
+            k += 1;
+            let far = Region::new(-1e9 + (k * 8192) as f64, 7e8, SIDE, SIDE);
+            quilted.fill_threads(black_box(&far), &mut out, 2).unwrap()
+        })
+    });
+    g.bench_function("quilting_height_at_a_point", |b| {
+        b.iter(|| {
+            i += 1;
+            let x = (i.wrapping_mul(0x9E37_79B9) % 1_000_000_000) as f64 * 37.0 + 0.5;
+            quilted.sample_footprint(black_box(x), black_box(-3e8 + x), 1.0, &mut px);
             px[0]
         })
     });

@@ -42,7 +42,7 @@ struct Args {
     /// Seed of both syntheses.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// surftile's method: synth, or rsgf (stochastic mode).
+    /// surftile's method: synth, rsgf (stochastic mode) or quilting.
     #[arg(long, default_value = "synth")]
     method: String,
     /// RSGF: block side (0: the default).
@@ -64,6 +64,9 @@ struct Args {
     /// 1024², bake's default; off: the block follows the objects alone).
     #[arg(long, default_value_t = RepeatWindow::Auto)]
     repeat_window: RepeatWindow,
+    /// Quilting: the penalty λ (negative: chosen by trial fills, as bake does).
+    #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
+    penalty: f32,
     /// Skip texture-synthesis (slow).
     #[arg(long)]
     no_embark: bool,
@@ -129,7 +132,8 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     let method = match args.method.as_str() {
         "synth" => Method::Synth,
         "rsgf" => Method::Rsgf,
-        other => return Err(format!("--method {other}: expected synth or rsgf").into()),
+        "quilting" => Method::Quilting,
+        other => return Err(format!("--method {other}: expected synth, rsgf or quilting").into()),
     };
     let builder = Baker::builder()
         .method(method)
@@ -161,14 +165,26 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     // Seams are searched at the default cell and, for RSGF, at its block: a grid of
     // 40 px does not divide the 32-px cell, so that cell alone spreads its seams over
     // every offset. Both rows of a run get the same cells.
+    // Quilted tiles: their tile cell too, where the bound tiles meet their margins.
+    let quilt_cells = [
+        DEFAULT_SEAM_CELL,
+        surftile::models::quilting::QuiltingParams::default().tile_px,
+    ];
     let cells: &[usize] = if method == Method::Rsgf {
         &[DEFAULT_SEAM_CELL, block]
+    } else if method == Method::Quilting {
+        &quilt_cells
     } else {
         &[DEFAULT_SEAM_CELL]
     };
     // Each method takes only its own options.
     let builder = if method == Method::Rsgf {
         builder.rsgf(options)
+    } else if method == Method::Quilting {
+        builder.quilting(surftile::bake::quilting::QuiltingOptions {
+            penalty: (args.penalty >= 0.0).then_some(args.penalty),
+            ..Default::default()
+        })
     } else {
         builder.synth(SynthParams {
             jitter: args.jitter,

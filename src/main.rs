@@ -8,6 +8,7 @@ use std::time::Instant;
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 use clap::{Args, Parser, Subcommand};
 
+use surftile::bake::quilting::QuiltingOptions;
 use surftile::bake::rsgf::{RepeatWindow, RsgfOptions};
 use surftile::bake::{Baker, Leveling, Taper};
 use surftile::bank::Method;
@@ -223,13 +224,19 @@ enum Command {
         #[arg(long)]
         tile: Option<String>,
         /// Roller: overlap (cut band) width in pixels; default: a sixth of the tile, ≥ 8.
+        /// Quilting: the blocks' overlap, 2 to 64 px; default 14, or a quarter of --block.
         #[arg(long, allow_negative_numbers = true)]
         overlap: Option<usize>,
         /// RSGF: block side in pixels; default 40, or with --stochastic (and no
         /// --border) 2.5 × the exemplar's object scale, at least 40 and at most a third
-        /// of its shorter side.
+        /// of its shorter side. Quilting: block side, 3 × the overlap to 256 px; default 56.
         #[arg(long, allow_negative_numbers = true)]
         block: Option<usize>,
+        /// Quilting: weight λ of the penalty on showing one part of the exemplar again
+        /// within a tile (0 to 100); default: the smallest of 0.1 … 0.8 whose 1024² trial
+        /// fill repeats little.
+        #[arg(long, allow_negative_numbers = true)]
+        penalty: Option<f32>,
         /// RSGF: border (patch overlap on each side) in pixels, below half the block;
         /// default 10, or a quarter of a scaled block.
         #[arg(long, allow_negative_numbers = true)]
@@ -718,7 +725,7 @@ fn main() -> ExitCode {
 }
 
 /// The library's parameter names, as its messages quote them, and this CLI's flags.
-const FLAGS: [(&str, &str); 34] = [
+const FLAGS: [(&str, &str); 35] = [
     ("fill_missing", "--fill-missing"),
     ("stochastic", "--stochastic"),
     ("lattice", "--lattice"),
@@ -753,6 +760,7 @@ const FLAGS: [(&str, &str); 34] = [
     ("coherence", "--coherence"),
     ("jitter_levels", "--jitter-levels"),
     ("ragged", "--ragged"),
+    ("penalty", "--penalty"),
 ];
 
 /// A library message in the CLI's words: each quoted parameter (`` `name` ``) becomes
@@ -1290,6 +1298,7 @@ fn run(command: Command) -> Result<()> {
             tile,
             overlap,
             block,
+            penalty,
             border,
             tolerance,
             metric,
@@ -1329,6 +1338,18 @@ fn run(command: Command) -> Result<()> {
                 builder = builder.tiles(n);
             }
             builder = builder.colours(colours);
+            // Quilting takes --block and --overlap as its own.
+            let quilting = method == Method::Quilting;
+            builder = builder.quilting(QuiltingOptions {
+                penalty,
+                block_px: block.filter(|_| quilting),
+                overlap_px: overlap.filter(|_| quilting),
+            });
+            let (block, overlap) = if quilting {
+                (None, None)
+            } else {
+                (block, overlap)
+            };
             let rsgf = RsgfOptions {
                 block_px: block,
                 border_px: border,

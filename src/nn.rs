@@ -152,7 +152,19 @@ fn symmetric_eigen(mut a: Vec<f64>, n: usize) -> (Vec<f64>, Vec<f64>) {
 /// Runs `f` on each item on all cores (crossbeam scoped threads over equal chunks),
 /// keeping the order of the results.
 pub fn par_map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> Vec<U> {
-    let threads = crate::stream::default_threads().clamp(1, items.len().max(1));
+    par_map_threads(items, crate::stream::default_threads(), f)
+}
+
+/// [`par_map`] on at most `threads` threads.
+pub fn par_map_threads<T: Sync, U: Send>(
+    items: &[T],
+    threads: usize,
+    f: impl Fn(&T) -> U + Sync,
+) -> Vec<U> {
+    let threads = threads.clamp(1, items.len().max(1));
+    if threads == 1 {
+        return items.iter().map(f).collect();
+    }
     let chunk = items.len().div_ceil(threads).max(1);
     let f = &f;
     let parts = crossbeam::scope(|s| {

@@ -59,6 +59,13 @@ fn bake(method: Method, exemplar: &str) -> Bank {
                 ..SynthParams::default()
             })
             .build(),
+        // A penalty given, so that the bake runs no trial fills.
+        Method::Quilting => builder
+            .quilting(surftile::bake::quilting::QuiltingOptions {
+                penalty: Some(0.2),
+                ..Default::default()
+            })
+            .build(),
         _ => builder.build(),
     }
     .unwrap();
@@ -84,6 +91,10 @@ fn examples(kind: &str) -> Vec<String> {
         "synth" => vec![write_bank(
             "synth",
             bake(Method::Synth, "tests/data/gimp-dried-mud.png"),
+        )],
+        "quilting" => vec![write_bank(
+            "quilting",
+            bake(Method::Quilting, "tests/data/gimp-dried-mud.png"),
         )],
         "milling" => {
             let (config, _) = MillingConfig::load("spiral-d4-ae05".as_ref()).unwrap();
@@ -277,6 +288,7 @@ fn every_rule_has_one_kind() {
         Rule::Wang,
         Rule::Rsgf,
         Rule::Synth,
+        Rule::Quilting,
         Rule::Milling,
     ] {
         let kinds: Vec<&str> = KINDS

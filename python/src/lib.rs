@@ -30,6 +30,7 @@ use surftile::bank::Method;
 use surftile::error::Error;
 use surftile::imperfect::Imperfect;
 use surftile::io::{ImageFile, MAX_IMAGE_PIXELS, ReadOptions, read_image};
+use surftile::bake::quilting::QuiltingOptions;
 use surftile::models::synth::SynthParams;
 use surftile::raster::Raster;
 use surftile::render::{MAX_IMPERFECT_SAMPLES, MAX_RENDER_SAMPLES, checked_size, fill_into};
@@ -703,11 +704,18 @@ fn pair_param(name: &str, value: &Bound<'_, PyAny>, sep: char) -> PyResult<(i64,
 }
 
 /// The keywords `bake` takes besides method, spacing_um and seed: the CLI's flags.
-const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, repeat_window, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels, ragged";
+const BAKE_KEYWORDS: &str = "patch, bank_size, level, downsample, downsample_filter, fill_missing, triangle_edge, taper, tiles, lattice, tile, overlap, block, border, tolerance, metric, join, feather, stochastic, match_histogram, edges, repeat_window, colours, levels, k, passes, fine_passes, jitter, appearance_dims, coherence, jitter_levels, ragged, penalty";
 
 /// The builder with the keywords applied, in the order given.
-fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyResult<BakerBuilder> {
+fn apply_params(
+    mut b: BakerBuilder,
+    method: Method,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<BakerBuilder> {
     let mut rsgf = RsgfOptions::default();
+    // Quilting takes `block` and `overlap` as its own, as the CLI does.
+    let quilts = method == Method::Quilting;
+    let mut quilting = QuiltingOptions::default();
     let mut synth = SynthParams::default();
     let (mut downsample, mut filter) = (1, surftile::prep::resample::DownsampleFilter::Nearest);
     for (key, v) in params.into_iter().flatten() {
@@ -765,9 +773,21 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
                 let size = |s: i64| usize::try_from(s).map_err(|_| bad(k, s, "a size ≥ 0"));
                 b.tile(size(w)?, size(h)?)
             }
+            "overlap" if quilts => {
+                quilting.overlap_px = Some(count_param(k, &v)?);
+                b
+            }
             "overlap" => b.overlap(count_param(k, &v)?),
+            "block" if quilts => {
+                quilting.block_px = Some(count_param(k, &v)?);
+                b
+            }
             "block" => {
                 rsgf.block_px = Some(count_param(k, &v)?);
+                b
+            }
+            "penalty" => {
+                quilting.penalty = Some(float_param(k, &v)? as f32);
                 b
             }
             "repeat_window" => {
@@ -864,7 +884,11 @@ fn apply_params(mut b: BakerBuilder, params: Option<&Bound<'_, PyDict>>) -> PyRe
             }
         };
     }
-    Ok(b.downsample(downsample, filter).rsgf(rsgf).synth(synth))
+    Ok(b
+        .downsample(downsample, filter)
+        .rsgf(rsgf)
+        .synth(synth)
+        .quilting(quilting))
 }
 /// Analyses an exemplar once into a bank. `exemplar` is a file path (.png, .jpg, .tif,
 /// .npy, instrument files; a milling .toml for method="milling") or a numpy array (rows, cols) or
@@ -887,7 +911,7 @@ fn bake(
     let method: Method = named(
         "method",
         method,
-        "auto, rpn, adsn, roller, rsgf, quilt, synth, milling",
+        "auto, rpn, adsn, roller, rsgf, quilt, synth, quilting, milling",
     )?;
     let seed = u64::try_from(seed).map_err(|_| bad("seed", seed, "a whole number ≥ 0"))?;
     let mut log = Vec::new();
@@ -922,7 +946,7 @@ fn bake(
         .py()?
     } else {
         let mut builder = Baker::builder().method(method).seed(seed);
-        builder = apply_params(builder, params)?;
+        builder = apply_params(builder, method, params)?;
         if let Some(s) = spacing_um {
             builder = builder.spacing_um(s);
         }

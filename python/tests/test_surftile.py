@@ -23,6 +23,7 @@ BANK_METHODS = [
     ("quilt", []),
     ("rsgf", ["--stochastic"]),
     ("synth", []),
+    ("quilting", ["--penalty", "0.2"]),
 ]
 
 
@@ -173,7 +174,7 @@ def test_out_allocates_no_second_output_buffer(banks):
 
 def test_threads_filling_pieces_give_the_whole(banks):
     bands = [(r, min(r + 16, 256)) for r in range(0, 256, 16)]
-    for kind in ("rsgf", "synth", "roller", "rpn"):
+    for kind in ("rsgf", "synth", "quilting", "roller", "rpn"):
         surface = surftile.open(banks[kind]).surface(seed=11)
         whole = surface.fill(X, Y, 256, 256)
         pieces = np.full_like(whole, np.nan)
@@ -246,6 +247,20 @@ def test_a_python_bake_writes_the_cli_bank(cli, exemplar, tmp_path):
     auto = surftile.bake(str(path))
     assert auto.log and auto.log[0].startswith("auto: "), auto.log
     assert auto.info["method"] == "rpn", auto.log
+
+
+def test_quilting_keywords_write_the_cli_bank(cli, exemplar, tmp_path):
+    path, _ = exemplar
+    out = tmp_path / "cli.bank"
+    cli("bake", path, "--method", "quilting", "--block", 32, "--penalty", 0.3, "--out", out)
+    bank = surftile.bake(str(path), method="quilting", block=32, penalty=0.3)
+    bank.save(tmp_path / "py.bank")
+    assert (tmp_path / "py.bank").read_bytes() == out.read_bytes()
+    assert "block=32 overlap=8" in bank.info["bake"], bank.info["bake"]
+    with pytest.raises(ValueError, match=r"penalty = -1: expected 0 to 100"):
+        surftile.bake(str(path), method="quilting", penalty=-1)
+    with pytest.raises(ValueError, match=r"quilting"):
+        surftile.bake(str(path), method="rsgf", penalty=0.2)
 
 
 def test_ragged_keyword_writes_the_cli_bank(cli, tmp_path):

@@ -12,6 +12,7 @@
 //! exemplar itself (missing points, too small).
 
 pub mod auto;
+pub mod quilting;
 pub mod rsgf;
 pub mod synth;
 
@@ -123,6 +124,7 @@ pub struct Baker {
     rsgf: RsgfOptions,
     colours: usize,
     synth: crate::models::synth::SynthParams,
+    quilting: crate::bake::quilting::QuiltingOptions,
 }
 
 /// Builder for [`Baker`]; every setter documents its default.
@@ -224,6 +226,12 @@ impl BakerBuilder {
         self.0.synth = params;
         self
     }
+    /// Quilting: the penalty λ (`None`: chosen by trial fills), block and overlap. Default:
+    /// [`crate::bake::quilting::QuiltingOptions::default`].
+    pub fn quilting(mut self, options: crate::bake::quilting::QuiltingOptions) -> Self {
+        self.0.quilting = options;
+        self
+    }
     /// Checks every parameter, and that each option given belongs to the method (a
     /// roller's `tiles` on an rpn bake is refused, not ignored).
     pub fn build(self) -> Result<Baker> {
@@ -240,7 +248,13 @@ impl BakerBuilder {
                 ))
             }
         };
-        use Method::{Quilt, Roller, Rsgf, Synth};
+        use Method::{Quilt, Quilting, Roller, Rsgf, Synth};
+        only(
+            m == Quilting || b.quilting == Default::default(),
+            "`penalty` or a quilting block or overlap",
+            "quilting",
+        )?;
+        b.quilting.validate()?;
         only(
             m == Roller || (b.tiles.is_none() && b.tile.is_none()),
             "`tiles` or `tile`",
@@ -431,6 +445,7 @@ impl Baker {
             rsgf: RsgfOptions::default(),
             colours: 2,
             synth: crate::models::synth::SynthParams::default(),
+            quilting: Default::default(),
         })
     }
 
@@ -633,6 +648,10 @@ impl Baker {
                 let (ex, base) = self.preprocess_with_header(image, source, [1, 1], progress)?;
                 return crate::bake::synth::bake_synth(&ex, &self.synth, base, progress);
             }
+            Method::Quilting => {
+                let (ex, base) = self.preprocess_with_header(image, source, [1, 1], progress)?;
+                return crate::bake::quilting::bake(&ex, &self.quilting, base, progress);
+            }
             Method::Auto => {
                 let choice = self.choose_method(image, source)?;
                 progress(&format!("auto: {}", choice.reason));
@@ -702,6 +721,7 @@ impl Baker {
                 | Method::Rsgf
                 | Method::Quilt
                 | Method::Synth
+                | Method::Quilting
                 | Method::Auto => random_phase_noise(&crops, pw, ph, &mut rng),
             };
             let tile = &mut level0[k * pw * ph * c..(k + 1) * pw * ph * c];

@@ -54,6 +54,9 @@ pub enum Rule {
     /// exemplar as one tile, and per synthesis level its Gaussian stack, appearance
     /// vectors and k-coherence candidates in the extra tables.
     Synth,
+    /// Image quilting in a chessboard of tiles (Efros & Freeman 2001, made streamable):
+    /// the exemplar as one tile, with its mips, and the quilting parameters.
+    Quilting,
 }
 
 impl std::fmt::Display for Rule {
@@ -65,6 +68,7 @@ impl std::fmt::Display for Rule {
             Rule::Rsgf => "rsgf",
             Rule::Wang => "wang",
             Rule::Synth => "synth",
+            Rule::Quilting => "quilting",
         })
     }
 }
@@ -90,6 +94,10 @@ pub enum Method {
     /// Parallel controllable texture synthesis on exemplar coordinates (Lefebvre &
     /// Hoppe 2005, appearance space 2006): structure kept, streamed in any split.
     Synth,
+    /// Image quilting (Efros & Freeman 2001) made streamable: quilted tiles in a
+    /// chessboard, free tiles alone, bound tiles matched and cut against their
+    /// neighbours' margins; objects kept whole.
+    Quilting,
     /// Picks one from the exemplar and says why: a lattice → roller or rsgf, a
     /// Gaussian-like height map → rpn, structured stochastic (or a photo that rpn
     /// scores worse on coherence) → rsgf --stochastic (on its torus repeated where it is
@@ -108,6 +116,7 @@ impl std::fmt::Display for Method {
             Method::Rsgf => "rsgf",
             Method::Quilt => "quilt",
             Method::Synth => "synth",
+            Method::Quilting => "quilting",
             Method::Auto => "auto",
         })
     }
@@ -226,6 +235,8 @@ pub enum Record {
     /// Synth rule: the synthesis parameters (`models::synth::SynthParams`); its extra
     /// tables hold one equal block per synthesis level (`levels`).
     Synth(serde_json::Value),
+    /// Quilting rule: the parameters (`models::quilting::QuiltingParams`).
+    Quilting(serde_json::Value),
 }
 
 impl Record {
@@ -238,6 +249,7 @@ impl Record {
             Record::Milling { .. } => Rule::Milling,
             Record::Rsgf(_) => Rule::Rsgf,
             Record::Synth(_) => Rule::Synth,
+            Record::Quilting(_) => Rule::Quilting,
         }
     }
 }
@@ -322,6 +334,8 @@ struct HeaderV1 {
     wang_colours: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     synth: Option<serde_json::Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    quilting: Option<serde_json::Value>,
 }
 
 impl From<BankHeader> for HeaderV1 {
@@ -331,6 +345,7 @@ impl From<BankHeader> for HeaderV1 {
         let seam_costs = h.seam_costs().to_vec();
         let (mut triangle_edge, mut lut_z_range) = (0.0, 0.0);
         let (mut milling, mut rsgf, mut synth, mut wang_colours) = (None, None, None, None);
+        let mut quilting = None;
         match h.record {
             Record::Blend {
                 triangle_edge: e,
@@ -346,6 +361,7 @@ impl From<BankHeader> for HeaderV1 {
             }
             Record::Rsgf(v) => rsgf = Some(v),
             Record::Synth(v) => synth = Some(v),
+            Record::Quilting(v) => quilting = Some(v),
         }
         HeaderV1 {
             rule,
@@ -368,6 +384,7 @@ impl From<BankHeader> for HeaderV1 {
             rsgf,
             wang_colours,
             synth,
+            quilting,
         }
     }
 }
@@ -391,6 +408,7 @@ impl TryFrom<HeaderV1> for BankHeader {
         foreign(rule != Rule::Milling && v.milling.is_some(), "milling")?;
         foreign(rule != Rule::Rsgf && v.rsgf.is_some(), "rsgf")?;
         foreign(rule != Rule::Synth && v.synth.is_some(), "synth")?;
+        foreign(rule != Rule::Quilting && v.quilting.is_some(), "quilting")?;
         foreign(
             rule != Rule::Wang && v.wang_colours.is_some(),
             "wang_colours",
@@ -422,6 +440,7 @@ impl TryFrom<HeaderV1> for BankHeader {
             },
             Rule::Rsgf => Record::Rsgf(v.rsgf.ok_or_else(|| missing("rsgf"))?),
             Rule::Synth => Record::Synth(v.synth.ok_or_else(|| missing("synth"))?),
+            Rule::Quilting => Record::Quilting(v.quilting.ok_or_else(|| missing("quilting"))?),
         };
         Ok(BankHeader {
             method: v.method,
@@ -495,7 +514,10 @@ impl Bank {
         if h.tiles == 0 || h.tiles > 4096 {
             return bad(format!("{} tiles; expected 1 to 4096", h.tiles));
         }
-        if matches!(h.rule(), Rule::Milling | Rule::Rsgf | Rule::Synth) {
+        if matches!(
+            h.rule(),
+            Rule::Milling | Rule::Rsgf | Rule::Synth | Rule::Quilting
+        ) {
             return self.validate_model_layout(what);
         }
         if !self.extra.is_empty() {
@@ -643,8 +665,10 @@ impl Bank {
         let bad = |m: String| Err(Error::bank(what, m));
         // RSGF and synth banks hold their exemplar as their one tile.
         let [w, ht] = h.tile_size;
-        if matches!(h.record, Record::Rsgf(_) | Record::Synth(_))
-            && (h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22)
+        if matches!(
+            h.record,
+            Record::Rsgf(_) | Record::Synth(_) | Record::Quilting(_)
+        ) && (h.tiles != 1 || w == 0 || ht == 0 || w.saturating_mul(ht) > 1 << 22)
         {
             return bad(format!(
                 "{} tiles of {w}×{ht}; expected one exemplar of 1 to 2^22 pixels",

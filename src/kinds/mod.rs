@@ -18,6 +18,7 @@ use crate::stream::Surface;
 mod blend;
 mod milling;
 mod model;
+mod quilting;
 mod rsgf;
 mod synth;
 mod toroidal;
@@ -31,6 +32,7 @@ pub static KINDS: &[&dyn Kind] = &[
     &wang::Wang,
     &rsgf::Rsgf,
     &synth::Synth,
+    &quilting::Quilting,
     &model::Model,
     &milling::Milling,
 ];

@@ -2,6 +2,7 @@
 
 pub mod fractal;
 pub mod milling;
+pub mod quilting;
 pub mod rsgf;
 pub mod rugged;
 pub mod synth;
