@@ -233,7 +233,7 @@ enum Command {
         #[arg(long, allow_negative_numbers = true)]
         block: Option<usize>,
         /// Quilting: weight λ of the penalty on showing one part of the exemplar again
-        /// within a tile (0 to 100); default: the smallest of 0.1 … 0.8 whose 1024² trial
+        /// within a tile (0 to 100); default: the smallest of 0.1 … 5 whose 1024² trial
         /// fill repeats little.
         #[arg(long, allow_negative_numbers = true)]
         penalty: Option<f32>,

@@ -77,7 +77,7 @@ impl Default for QuiltingParams {
 }
 
 /// The λ ladder a bake tries, smallest first ([`choose_penalty`]).
-pub const PENALTY_LADDER: [f32; 7] = [0.1, 0.15, 0.2, 0.3, 0.4, 0.6, 0.8];
+pub const PENALTY_LADDER: [f32; 11] = [0.1, 0.15, 0.2, 0.3, 0.4, 0.6, 0.8, 1.2, 2.0, 3.0, 5.0];
 
 /// The self-repetition a trial fill may show by [`exact_repetition`] for its λ to be
 /// taken: under the bar of 0.15 by a margin, since the estimate counts exact
@@ -209,6 +209,25 @@ fn dot8(a: &[f32], b: &[f32]) -> f32 {
     for (x, y) in ac.zip(bc) {
         for l in 0..8 {
             acc[l] += x[l] * y[l];
+        }
+    }
+    acc.iter().sum::<f32>() + tail
+}
+
+/// The squared distance of two slices, in eight lanes (a fixed order).
+fn ssd8(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0f32; 8];
+    let (ac, bc) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f32 = ac
+        .remainder()
+        .iter()
+        .zip(bc.remainder())
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum();
+    for (x, y) in ac.zip(bc) {
+        for l in 0..8 {
+            let d = x[l] - y[l];
+            acc[l] += d * d;
         }
     }
     acc.iter().sum::<f32>() + tail
@@ -623,6 +642,8 @@ impl QuiltingModel {
         let mut f = vec![0.0f32; self.vert.d.max(self.horz.d)];
         let mut cands: Vec<u32> = Vec::new();
         let mut mask = vec![true; b * b];
+        let mut runs: Vec<(usize, usize, usize, usize)> = Vec::new();
+        let mut known_vals: Vec<f32> = Vec::new();
         let starts = block_starts(l, b, p.step());
         for &y0 in &starts {
             for &x0 in &starts {
@@ -662,25 +683,38 @@ impl QuiltingModel {
                 let (cy, cx) = if cands.is_empty() {
                     (rng.random_range(0..self.ph), rng.random_range(0..self.pw))
                 } else {
-                    let nk = (0..b * b).filter(|&k| kw(k / b, k % b)).count() as f32;
+                    // The known pixels in runs along the block's rows, their values
+                    // gathered once: each candidate's SSD is then a few contiguous
+                    // slices.
+                    runs.clear();
+                    known_vals.clear();
+                    for r in 0..b {
+                        let mut col = 0;
+                        while col < b {
+                            if !kw(r, col) {
+                                col += 1;
+                                continue;
+                            }
+                            let start = col;
+                            while col < b && kw(r, col) {
+                                col += 1;
+                            }
+                            let at = ((y0 + r) * l + x0 + start) * c;
+                            runs.push((r, start, col, known_vals.len()));
+                            known_vals.extend_from_slice(&cv.val[at..at + (col - start) * c]);
+                        }
+                    }
+                    let nk = (known_vals.len() / c) as f32;
                     let scale = p.penalty * self.medk * nk / (b * o) as f32;
                     let errs: Vec<f32> = cands
                         .iter()
                         .map(|&id| {
                             let (cy, cx) = (id as usize / self.pw, id as usize % self.pw);
                             let mut e = 0.0f32;
-                            for r in 0..b {
-                                let crow = (y0 + r) * l + x0;
-                                let erow = (cy + r) * ew + cx;
-                                for col in 0..b {
-                                    if cv.known[crow + col] {
-                                        let a = &cv.val[(crow + col) * c..][..c];
-                                        let q = &ex[(erow + col) * c..][..c];
-                                        for (u, w) in a.iter().zip(q) {
-                                            e += (u - w) * (u - w);
-                                        }
-                                    }
-                                }
+                            for &(r, c0, c1, k) in &runs {
+                                let at = ((cy + r) * ew + cx + c0) * c;
+                                let n = (c1 - c0) * c;
+                                e += ssd8(&known_vals[k..k + n], &ex[at..at + n]);
                             }
                             let used: usize = placed
                                 .iter()
@@ -1120,6 +1154,17 @@ impl Surface for QuiltingSurface {
 /// of a window that continues its own offset as much. Exact copies only, so it reads
 /// under `stats`' self-repetition, which counts near-copies too.
 pub fn exact_repetition(src: &[u32], side: usize, exemplar_width: usize) -> f64 {
+    repetition_from_sources(src, side, exemplar_width, 99)
+}
+
+/// [`exact_repetition`] with windows that continue one offset over at least `percent`
+/// of their pixels.
+pub fn repetition_from_sources(
+    src: &[u32],
+    side: usize,
+    exemplar_width: usize,
+    percent: usize,
+) -> f64 {
     const P: usize = 32;
     if side < P {
         return 0.0;
@@ -1133,7 +1178,7 @@ pub fn exact_repetition(src: &[u32], side: usize, exemplar_width: usize) -> f64 
                 hit += usize::from(e / ew == y as i64 + ey && e % ew == x as i64 + ex);
             }
         }
-        hit * 100 >= P * P * 99
+        hit * 100 >= P * P * percent
     };
     let mut shown: HashMap<u32, Vec<u32>> = HashMap::new();
     for (i, &e) in src.iter().enumerate() {
