@@ -63,7 +63,7 @@ pub fn bake(
                 .map(|(l, e)| format!("λ {l}: {e:.3}"))
                 .collect();
             progress(&format!(
-                "λ {} from trial fills of {}² (exact repetition, at most {}): {}",
+                "λ {} from trial fills of {}² (windows repeated, 95% from one offset; at most {}): {}",
                 m.params.penalty,
                 crate::models::quilting::TRIAL_SIDE,
                 crate::models::quilting::PENALTY_TARGET,
