@@ -12,9 +12,11 @@
 //!
 //! The same for quilted tiles (`quilting_*`, `bake --method quilting`): bake (the
 //! model: bases, FFT projections, k-d trees; then the penalty chosen by trial fills of
-//! 1024², as a bake without `--penalty` does) and fill together, the same with the
-//! penalty given (no trials), the fill alone (a fresh far region each time: every tile
-//! quilted cold) and one sample at a random far point (up to five tiles quilted cold).
+//! 1024², as a bake without `--penalty` does) and fill together; the same with the
+//! penalty given (λ = 0.2, the parameters' default: no trials); the fill alone (a fresh
+//! far region each time: every tile quilted cold); and one sample between pixels at a
+//! random far point (its 2 × 2 neighbourhood's tiles quilted cold: one to five, up to
+//! eight at a cell corner).
 //!
 //! texture-synthesis takes about 40 s per 1024² output here, so its 10 samples alone
 //! take several minutes: `cargo bench --bench synth -- 'synth/(bake|fill|height|baseline_m)'`

@@ -160,8 +160,8 @@ fn every_pixel_is_an_exemplar_pixel() {
 /// The figures see the structure kept, on ETR's ice photo at 512²: coherence at most
 /// 0.30 (random phases read about 1; the notes' quilted tiles 0.18–0.21 at 1024²),
 /// self-repetition at most 0.15 and a standard deviation within 40% of the exemplar's
-/// (the method drifts towards bland pixels, as texture-synthesis does: 0.67–0.75 in
-/// the notes).
+/// (the method drifts towards bland pixels, as texture-synthesis does: 0.63–0.72 on
+/// four large photos in the notes).
 #[test]
 fn quilting_keeps_structure_on_a_photo() {
     let ex = photo("etr-ice01.png");

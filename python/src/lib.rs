@@ -246,7 +246,8 @@ impl Source {
     }
 
     /// The registry's kind: "blend" (rpn, adsn banks), "toroidal" (roller), "wang"
-    /// (quilt), "rsgf", "synth", "milling" (banks, configurations, presets) or "models".
+    /// (quilt), "rsgf", "synth", "quilting", "milling" (banks, configurations, presets) or
+    /// "models".
     #[getter]
     fn kind(&self) -> &'static str {
         self.inner.kind().name()
@@ -893,7 +894,7 @@ fn apply_params(
 /// Analyses an exemplar once into a bank. `exemplar` is a file path (.png, .jpg, .tif,
 /// .npy, instrument files; a milling .toml for method="milling") or a numpy array (rows, cols) or
 /// (rows, cols, channels ≤ 4) of floats or integers. `method`: auto (picks one and
-/// says why in `Bank.log`), rpn, adsn, roller, rsgf, quilt, synth or milling.
+/// says why in `Bank.log`), rpn, adsn, roller, rsgf, quilt, synth, quilting or milling.
 /// `spacing_um`: pixel spacing in µm (overrides the file's; required for milling).
 /// `seed`: the bake's random draws. Other keywords are the CLI's `bake` flags with
 /// underscores (patch, bank_size, level, stochastic, block, k, …), with the same

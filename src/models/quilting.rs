@@ -1104,15 +1104,16 @@ impl Surface for QuiltingSurface {
         let (fx, fy) = ((x - ix as f64) as f32, (y - iy as f64) as f32);
         let t = self.model.params.tile_px as i64;
         let (i0, j0) = (iy.div_euclid(t), ix.div_euclid(t));
-        let (i1, j1) = ((iy + 1).div_euclid(t), (ix + 1).div_euclid(t));
-        let tiles = self.tiles((i0, i1), (j0, j1), 1);
         let (level, lt) = mip_level(footprint, self.model.levels.len());
         if fx == 0.0 && fy == 0.0 && level == 0 && lt == 0.0 {
-            // A pixel exactly: its value, as a fill gives it.
+            // A pixel exactly: its value, as a fill gives it, from its own cell's tile.
+            let tiles = self.tiles((i0, i0), (j0, j0), 1);
             let s = self.source(&tiles, ix, iy);
             out[..c].copy_from_slice(self.model.value(s));
             return;
         }
+        let (i1, j1) = ((iy + 1).div_euclid(t), (ix + 1).div_euclid(t));
+        let tiles = self.tiles((i0, i1), (j0, j1), 1);
         let mut v = [[0.0f32; 4]; 4];
         for (k, (dx, dy)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
             let s = self.source(&tiles, ix + dx, iy + dy);

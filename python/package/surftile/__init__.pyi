@@ -76,7 +76,7 @@ class Source:
         """What `surftile info --json` prints for this source."""
     @property
     def kind(self) -> str:
-        """The registry's kind: blend, toroidal, wang, rsgf, synth, milling or models."""
+        """The registry's kind: blend, toroidal, wang, rsgf, synth, quilting, milling or models."""
     @property
     def spacing_um(self) -> Optional[float]:
         """Pixel spacing in µm, or None."""
