@@ -24,13 +24,13 @@ use pyo3::exceptions::{
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList};
 
+use surftile::bake::quilting::QuiltingOptions;
 use surftile::bake::rsgf::{RepeatWindow, RsgfOptions};
 use surftile::bake::{Baker, BakerBuilder, Leveling};
 use surftile::bank::Method;
 use surftile::error::Error;
 use surftile::imperfect::Imperfect;
 use surftile::io::{ImageFile, MAX_IMAGE_PIXELS, ReadOptions, read_image};
-use surftile::bake::quilting::QuiltingOptions;
 use surftile::models::synth::SynthParams;
 use surftile::raster::Raster;
 use surftile::render::{MAX_IMPERFECT_SAMPLES, MAX_RENDER_SAMPLES, checked_size, fill_into};
@@ -885,8 +885,7 @@ fn apply_params(
             }
         };
     }
-    Ok(b
-        .downsample(downsample, filter)
+    Ok(b.downsample(downsample, filter)
         .rsgf(rsgf)
         .synth(synth)
         .quilting(quilting))
