@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::repo;
+use common::{assert_same_bits, repo};
 use surftile::Raster;
 use surftile::bake::Baker;
 use surftile::bake::quilting::QuiltingOptions;
@@ -39,13 +39,6 @@ fn fill(s: &QuiltingSurface, region: &Region, threads: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; region.len() * s.channels()];
     s.fill_threads(region, &mut out, threads).unwrap();
     out
-}
-
-fn assert_same_bits(got: &[f32], want: &[f32], what: &str) {
-    assert_eq!(got.len(), want.len(), "{what}: length");
-    if let Some(k) = (0..got.len()).find(|&k| got[k].to_bits() != want[k].to_bits()) {
-        panic!("{what}: first difference at {k}: {} vs {}", got[k], want[k]);
-    }
 }
 
 /// Four random sub-regions of a region crossing many tiles, each filled cold (a fresh

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::repo;
+use common::{assert_same_bits, repo};
 use surftile::Raster;
 use surftile::bake::Baker;
 use surftile::bake::rsgf::{RsgfOptions, coverage_bias};
@@ -59,14 +59,6 @@ fn near_regular(w: usize, h: usize, u: (i64, i64), v: (i64, i64), channels: usiz
 /// The `w × h` window at (x, y) of a raster.
 fn window(r: &Raster, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
     r.crop(x, y, w, h).unwrap().data
-}
-
-/// Bitwise equality with a pointer to the first difference.
-fn assert_same_bits(got: &[f32], want: &[f32], what: &str) {
-    assert_eq!(got.len(), want.len(), "{what}: length");
-    if let Some(k) = (0..got.len()).find(|&k| got[k].to_bits() != want[k].to_bits()) {
-        panic!("{what}: first difference at {k}: {} vs {}", got[k], want[k]);
-    }
 }
 
 /// Any region, filled in any order, on any thread count, with any cache size, equals

@@ -1,7 +1,7 @@
 //! The quilting bank: the exemplar with its mips and the quilting parameters, λ chosen
 //! by trial fills where it is not given ([`crate::models::quilting`]).
 
-use crate::bank::{Bank, BankHeader, LevelInfo, Method, Record};
+use crate::bank::{Bank, BankHeader, Method, Record};
 use crate::error::{Error, Result};
 use crate::models::quilting::{QuiltingModel, QuiltingParams, choose_penalty};
 use crate::raster::Raster;
@@ -73,28 +73,15 @@ pub fn bake(
         }
     };
     let p = model.params.clone();
-    let chain = crate::models::rsgf::mip_chain(ex);
+    let (levels, texels) = crate::bake::rsgf::exemplar_levels(ex);
     progress(&format!(
         "exemplar {w}×{h}×{c}, {} mip levels; blocks of {} px, overlap {} px, tiles of {} px, λ {}",
-        chain.len(),
+        levels.len(),
         p.block_px,
         p.overlap_px,
         p.tile_px,
         p.penalty
     ));
-    let levels: Vec<LevelInfo> = chain
-        .iter()
-        .map(|l| {
-            let (mean, sigma) = crate::bake::channel_stats(&l.data, c);
-            LevelInfo {
-                size: [l.w, l.h],
-                mean,
-                sigma,
-                shift: None,
-            }
-        })
-        .collect();
-    let texels: Vec<Vec<f32>> = chain.into_iter().map(|l| l.data).collect();
     let (exemplar, spacing_um, seed, bake_text) = header_base;
     let header = BankHeader {
         method: Method::Quilting,

@@ -696,20 +696,7 @@ pub(crate) fn bake(
         .unwrap_or_default();
     // The bank keeps the exemplar's own chain (the model's may be extended by its
     // reflected edges, or be the repeated torus: loading rebuilds either).
-    let chain = mip_chain(ex);
-    let levels: Vec<LevelInfo> = chain
-        .iter()
-        .map(|l| {
-            let (mean, sigma) = crate::bake::channel_stats(&l.data, c);
-            LevelInfo {
-                size: [l.w, l.h],
-                mean,
-                sigma,
-                shift: None,
-            }
-        })
-        .collect();
-    let texels: Vec<Vec<f32>> = chain.into_iter().map(|l| l.data).collect();
+    let (levels, texels) = exemplar_levels(ex);
     let mut params = params;
     if options.stochastic && options.histogram {
         params.histogram = histogram_map(model, ex)?;
@@ -765,4 +752,23 @@ pub(crate) fn bake(
     };
     let luts = vec![Vec::new(); texels.len()];
     Bank::new(header, texels, luts, "just baked")
+}
+
+/// The exemplar and its 2 × 2 halvings ([`mip_chain`]) as a bank's levels and texels:
+/// what RSGF and quilting banks hold.
+pub(crate) fn exemplar_levels(ex: &Raster) -> (Vec<LevelInfo>, Vec<Vec<f32>>) {
+    let chain = mip_chain(ex);
+    let levels = chain
+        .iter()
+        .map(|l| {
+            let (mean, sigma) = crate::bake::channel_stats(&l.data, ex.channels);
+            LevelInfo {
+                size: [l.w, l.h],
+                mean,
+                sigma,
+                shift: None,
+            }
+        })
+        .collect();
+    (levels, chain.into_iter().map(|l| l.data).collect())
 }

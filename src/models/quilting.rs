@@ -1273,22 +1273,7 @@ pub fn check_bank(bank: &Bank, what: &str) -> Result<QuiltingParams> {
         .validate()
         .and_then(|_| params.check_exemplar(w, ht))
         .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
-    if h.levels.is_empty() || h.levels.len() > 14 || h.lut_size() != 0 {
-        return bad(format!(
-            "{} levels and a table of {}; expected 1 to 14 levels and none",
-            h.levels.len(),
-            h.lut_size()
-        ));
-    }
-    for (l, info) in h.levels.iter().enumerate() {
-        let expected = [w >> l, ht >> l];
-        if info.size != expected {
-            return bad(format!(
-                "level {l} is {:?}; expected {expected:?}",
-                info.size
-            ));
-        }
-    }
+    crate::models::rsgf::check_halvings(bank, what)?;
     Ok(params)
 }
 

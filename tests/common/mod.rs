@@ -72,3 +72,12 @@ pub fn png8(path: &std::path::Path) -> (usize, usize, png::ColorType, Vec<u8>) {
         buf,
     )
 }
+
+/// Bitwise equality with a pointer to the first difference.
+#[allow(dead_code)]
+pub fn assert_same_bits(got: &[f32], want: &[f32], what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}: length");
+    if let Some(k) = (0..got.len()).find(|&k| got[k].to_bits() != want[k].to_bits()) {
+        panic!("{what}: first difference at {k}: {} vs {}", got[k], want[k]);
+    }
+}

@@ -714,6 +714,17 @@ pub fn check_bank(bank: &Bank, what: &str) -> Result<RsgfParams> {
         .validate()
         .and_then(|_| params.check_exemplar(w, ht))
         .map_err(|e| Error::bank(what, format!("parameters: {e}")))?;
+    check_halvings(bank, what)?;
+    Ok(params)
+}
+
+/// Checks that a bank holding its exemplar as one tile has 1 to 14 levels, each the
+/// halving of the one before ([`mip_chain`]'s sizes), and no table (RSGF and quilting
+/// banks). `what` names the bank in errors.
+pub(crate) fn check_halvings(bank: &Bank, what: &str) -> Result<()> {
+    let h = &bank.header;
+    let bad = |m: String| Err(Error::bank(what, m));
+    let [w, ht] = h.tile_size;
     if h.levels.is_empty() || h.levels.len() > 14 || h.lut_size() != 0 {
         return bad(format!(
             "{} levels and a table of {}; expected 1 to 14 levels and none",
@@ -730,5 +741,5 @@ pub fn check_bank(bank: &Bank, what: &str) -> Result<RsgfParams> {
             ));
         }
     }
-    Ok(params)
+    Ok(())
 }
