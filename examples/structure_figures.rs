@@ -67,6 +67,12 @@ struct Args {
     /// Quilting: the penalty λ (negative: chosen by trial fills, as bake does).
     #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
     penalty: f32,
+    /// Quilting: points a candidate search looks at (negative: the default; 0: exact).
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
+    search: i64,
+    /// Quilting: wrap around the exemplar made periodic: yes, no or auto.
+    #[arg(long, default_value = "auto")]
+    wrap: String,
     /// Skip texture-synthesis (slow).
     #[arg(long)]
     no_embark: bool,
@@ -183,6 +189,12 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     } else if method == Method::Quilting {
         builder.quilting(surftile::bake::quilting::QuiltingOptions {
             penalty: (args.penalty >= 0.0).then_some(args.penalty),
+            search: usize::try_from(args.search).ok(),
+            wrap: match args.wrap.as_str() {
+                "yes" => Some(true),
+                "no" => Some(false),
+                _ => None,
+            },
             ..Default::default()
         })
     } else {

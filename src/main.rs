@@ -266,7 +266,8 @@ enum Command {
         match_histogram: bool,
         /// RSGF, stochastic: how patches meet the exemplar's edges: wrap around the
         /// exemplar made periodic, or hang over its mirrored edges; auto wraps where
-        /// blocks at bounded positions would miss the exemplar's histogram.
+        /// blocks at bounded positions would miss the exemplar's histogram. Quilting:
+        /// wrap, or (reflect) keep every block inside the exemplar; auto as RSGF.
         #[arg(long, value_enum, default_value_t = Edges::Auto)]
         edges: Edges,
         /// RSGF, stochastic, block not given: cap the block scaled to the exemplar's
@@ -1344,11 +1345,18 @@ fn run(command: Command) -> Result<()> {
                 penalty,
                 block_px: block.filter(|_| quilting),
                 overlap_px: overlap.filter(|_| quilting),
+                search: None,
+                wrap: match edges {
+                    _ if !quilting => None,
+                    Edges::Auto => None,
+                    Edges::Wrap => Some(true),
+                    Edges::Reflect => Some(false),
+                },
             });
-            let (block, overlap) = if quilting {
-                (None, None)
+            let (block, overlap, edges) = if quilting {
+                (None, None, Edges::Auto)
             } else {
-                (block, overlap)
+                (block, overlap, edges)
             };
             let rsgf = RsgfOptions {
                 block_px: block,

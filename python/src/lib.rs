@@ -832,6 +832,18 @@ fn apply_params(
                 rsgf.histogram = bool_param(k, &v)?;
                 b
             }
+            "edges" if quilts => {
+                quilting.wrap = match enum_param::<surftile::models::rsgf::Edges>(
+                    k,
+                    &v,
+                    "auto, reflect, wrap",
+                )? {
+                    surftile::models::rsgf::Edges::Auto => None,
+                    surftile::models::rsgf::Edges::Wrap => Some(true),
+                    surftile::models::rsgf::Edges::Reflect => Some(false),
+                };
+                b
+            }
             "edges" => {
                 rsgf.edges = enum_param(k, &v, "auto, reflect, wrap")?;
                 b

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
-use crate::nn::KdTree;
+use crate::nn::{KdTree, sq_dist};
 use crate::raster::Raster;
 use crate::stream::{Region, Surface, fill_rows_by_sample, in_range, mip_level};
 
@@ -60,6 +60,10 @@ pub struct QuiltingParams {
     pub dims: usize,
     /// Blocks within this fraction of the least error are drawn from (0 to 1).
     pub tolerance: f32,
+    /// Points a candidate search looks at per known block side (best bin first; 0:
+    /// all, an exact search).
+    #[serde(default)]
+    pub search: usize,
 }
 
 impl Default for QuiltingParams {
@@ -72,6 +76,7 @@ impl Default for QuiltingParams {
             candidates: 16,
             dims: 24,
             tolerance: 0.1,
+            search: 2048,
         }
     }
 }
@@ -134,6 +139,16 @@ impl QuiltingParams {
         }
         if !(self.tolerance.is_finite() && (0.0..=1.0).contains(&self.tolerance)) {
             return Err(Error::param("tolerance", self.tolerance, "0 to 1"));
+        }
+        if self.search != 0 && !(self.candidates..=1 << 24).contains(&self.search) {
+            return Err(Error::param(
+                "search",
+                self.search,
+                format!(
+                    "0 (exact) or {} (the candidates) to 2^24 points",
+                    self.candidates
+                ),
+            ));
         }
         Ok(())
     }
@@ -216,25 +231,6 @@ fn dot8(a: &[f32], b: &[f32]) -> f32 {
     for (x, y) in ac.zip(bc) {
         for l in 0..8 {
             acc[l] += x[l] * y[l];
-        }
-    }
-    acc.iter().sum::<f32>() + tail
-}
-
-/// The squared distance of two slices, in eight lanes (a fixed order).
-fn ssd8(a: &[f32], b: &[f32]) -> f32 {
-    let mut acc = [0.0f32; 8];
-    let (ac, bc) = (a.chunks_exact(8), b.chunks_exact(8));
-    let tail: f32 = ac
-        .remainder()
-        .iter()
-        .zip(bc.remainder())
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum();
-    for (x, y) in ac.zip(bc) {
-        for l in 0..8 {
-            let d = x[l] - y[l];
-            acc[l] += d * d;
         }
     }
     acc.iter().sum::<f32>() + tail
@@ -681,9 +677,17 @@ impl QuiltingModel {
                         &mut v,
                     );
                     basis.project(&v, &mut f);
-                    for (_, id) in self.trees[s].nearest(&f[..basis.d], p.candidates, |_| true) {
-                        cands.push(id);
-                    }
+                    let near = if p.search == 0 {
+                        self.trees[s].nearest(&f[..basis.d], p.candidates, |_| true)
+                    } else {
+                        self.trees[s].nearest_within_budget(
+                            &f[..basis.d],
+                            p.candidates,
+                            p.search,
+                            |_| true,
+                        )
+                    };
+                    cands.extend(near.iter().map(|&(_, id)| id));
                 }
                 cands.sort_unstable();
                 cands.dedup();
@@ -721,7 +725,7 @@ impl QuiltingModel {
                             for &(r, c0, c1, k) in &runs {
                                 let at = ((cy + r) * ew + cx + c0) * c;
                                 let n = (c1 - c0) * c;
-                                e += ssd8(&known_vals[k..k + n], &ex[at..at + n]);
+                                e += sq_dist(&known_vals[k..k + n], &ex[at..at + n]);
                             }
                             let used: usize = placed
                                 .iter()

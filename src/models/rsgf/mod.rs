@@ -26,8 +26,8 @@ use lru::LruCache;
 use serde::{Deserialize, Serialize};
 
 use model::Edge;
-pub(crate) use model::mip_chain;
 pub use model::{MAX_EXEMPLAR_PIXELS, RsgfModel, wrap_fits, wrapped_side};
+pub(crate) use model::{mip_chain, wrap_extend, wrap_torus};
 
 use crate::bank::{Bank, BankHeader, Record};
 use crate::error::{Error, Result};
