@@ -188,7 +188,8 @@ pub fn par_map_threads<T: Sync, U: Send>(
 const LEAF: usize = 12;
 
 /// A k-d tree over `n` points of `dim` f32 coordinates, for exact nearest-neighbour
-/// and range queries (squared Euclidean distance) with a filter on point indices.
+/// and range queries (squared Euclidean distance) with a filter on point indices, and
+/// approximate ones within a budget of points ([`KdTree::nearest_within_budget`]).
 #[derive(Clone, Debug)]
 pub struct KdTree {
     dim: usize,

@@ -379,6 +379,35 @@ fn bad_quilting_input_is_refused() {
         .map(|e| e.to_string())
         .unwrap_or_default();
     assert!(bad_block.contains("block"), "{bad_block}");
+    // A wrap asked of an exemplar whose repeated torus would pass the pixel budget is
+    // refused before any torus is made, with the sizes and what to do instead.
+    let bake = |raster: Raster| {
+        Baker::builder()
+            .method(Method::Quilting)
+            .leveling(surftile::bake::Leveling::None)
+            .quilting(QuiltingOptions {
+                penalty: Some(1.0),
+                wrap: Some(true),
+                ..Default::default()
+            })
+            .build()
+            .unwrap()
+            .bake(
+                &surftile::io::ImageFile::new(raster, None),
+                "test",
+                &mut |_| {},
+            )
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    };
+    let (w, h) = (2048usize, 2000usize);
+    let big = Raster::from_vec(w, h, 1, (0..w * h).map(|i| (i % 7) as f32).collect()).unwrap();
+    let m = bake(big);
+    assert!(
+        m.contains("2103×2055") && m.contains("at most") && m.contains("--edges"),
+        "{m}"
+    );
 }
 
 /// A bound tile starts from its free neighbours' margins and keeps them outside its

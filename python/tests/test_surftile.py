@@ -261,6 +261,15 @@ def test_quilting_keywords_write_the_cli_bank(cli, exemplar, tmp_path):
         surftile.bake(str(path), method="quilting", penalty=-1)
     with pytest.raises(ValueError, match=r"quilting"):
         surftile.bake(str(path), method="rsgf", penalty=0.2)
+    # edges= sets the wrap as --edges does; wrapped and bounded banks differ.
+    cli("bake", path, "--method", "quilting", "--penalty", 0.3, "--edges", "wrap",
+        "--out", tmp_path / "cli-wrap.bank")
+    for edges, name in (("wrap", "py-wrap.bank"), ("reflect", "py-inside.bank")):
+        surftile.bake(str(path), method="quilting", penalty=0.3, edges=edges).save(
+            tmp_path / name)
+    wrapped = (tmp_path / "py-wrap.bank").read_bytes()
+    assert wrapped == (tmp_path / "cli-wrap.bank").read_bytes()
+    assert wrapped != (tmp_path / "py-inside.bank").read_bytes()
 
 
 def test_ragged_keyword_writes_the_cli_bank(cli, tmp_path):

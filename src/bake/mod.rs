@@ -251,7 +251,7 @@ impl BakerBuilder {
         use Method::{Quilt, Quilting, Roller, Rsgf, Synth};
         only(
             m == Quilting || b.quilting == Default::default(),
-            "`penalty` or a quilting block or overlap",
+            "`penalty`, a quilting block, overlap, search or wrap",
             "quilting",
         )?;
         b.quilting.validate()?;

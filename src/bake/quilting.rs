@@ -51,8 +51,8 @@ impl QuiltingOptions {
 
 /// Whether a quilting bake of `ex` wraps by default: where blocks at bounded positions
 /// would show the exemplar's edges too seldom for the W1 or standard-deviation bar
-/// ([`crate::bake::rsgf::coverage_bias`]; on the 100² dried mud, 0.91 of the standard
-/// deviation), and the torus holds a block (the exemplar's sides at least a block and
+/// ([`crate::bake::rsgf::coverage_bias`]; on the 100² dried mud, 0.92 of the standard
+/// deviation at the default 56-px blocks), and the torus holds a block (the exemplar's sides at least a block and
 /// two overlaps) within [`crate::models::rsgf::MAX_EXEMPLAR_PIXELS`] once repeated.
 pub fn wrap_chosen(ex: &Raster, params: &QuiltingParams) -> bool {
     let b = params.block_px;
@@ -131,9 +131,28 @@ pub fn bake(
 ) -> Result<Bank> {
     let threads = crate::stream::default_threads();
     let params = options.params();
-    params.check_exemplar(ex.width, ex.height)?;
+    crate::models::quilting::check_input(ex, &params)?;
     let wrapped;
-    let ex = if options.wrap.unwrap_or_else(|| wrap_chosen(ex, &params)) {
+    let wrap = options.wrap.unwrap_or_else(|| wrap_chosen(ex, &params));
+    let ex = if wrap {
+        let b = params.block_px;
+        let side = |n: usize| n + b - 1;
+        if side(ex.width) * side(ex.height) > crate::models::rsgf::MAX_EXEMPLAR_PIXELS {
+            return Err(Error::param(
+                "quilting wrap",
+                format!(
+                    "a {}×{} exemplar, repeated to {}×{}",
+                    ex.width,
+                    ex.height,
+                    side(ex.width),
+                    side(ex.height)
+                ),
+                format!(
+                    "at most {} pixels once repeated by the block less 1 px (--edges auto or reflect, or a smaller exemplar)",
+                    crate::models::rsgf::MAX_EXEMPLAR_PIXELS
+                ),
+            ));
+        }
         wrapped = wrapped_exemplar(ex, &params);
         progress(&format!(
             "blocks wrap around the exemplar made periodic (its wrap jumps {:.1}× its inside; up to {TILES_AS_IT_IS} it tiles as it is): {}×{} from {}×{}",
@@ -190,7 +209,7 @@ pub fn bake(
         seed,
         exemplar,
         bake: format!(
-            "method=quilting block={} overlap={} tile={} penalty={} candidates={} dims={} tolerance={} search={} {bake_text}",
+            "method=quilting block={} overlap={} tile={} penalty={} candidates={} dims={} tolerance={} search={} wrap={wrap} {bake_text}",
             p.block_px,
             p.overlap_px,
             p.tile_px,

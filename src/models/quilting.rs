@@ -18,8 +18,9 @@
 //! The search is not the paper's exhaustive one. Every block side's strip
 //! (`block_px × overlap_px`) is projected on its leading principal directions (`dims`,
 //! by subspace iteration; the projections of every exemplar position by FFT
-//! correlation), and four k-d trees, one per side, give the `candidates` nearest
-//! positions for each side of a block whose overlap is known. Their exact SSD over the
+//! correlation), and four k-d trees, one per side, give `candidates` near positions
+//! for each side of a block whose overlap is known (a best-bin-first search that looks
+//! at `search` points; 0: the exact nearest). Their exact SSD over the
 //! known pixels, plus a footprint penalty, picks the block: within `tolerance` of the
 //! least, at random. The penalty, `penalty` · (the mean count of the tile's earlier
 //! blocks over the candidate's exemplar footprint) · a median SSD, keeps a tile from
@@ -424,6 +425,35 @@ const RIGHT: usize = 1;
 const TOP: usize = 2;
 const BOTTOM: usize = 3;
 
+/// Checks `params` and that `exemplar` fits them: a block, 1 to 4 channels, at most
+/// [`crate::models::rsgf::MAX_EXEMPLAR_PIXELS`] pixels, finite values.
+pub fn check_input(exemplar: &Raster, params: &QuiltingParams) -> Result<()> {
+    params.validate()?;
+    let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
+    params.check_exemplar(w, h)?;
+    if !(1..=4).contains(&c) {
+        return Err(Error::param("exemplar channels", c, "1 to 4"));
+    }
+    if w * h > crate::models::rsgf::MAX_EXEMPLAR_PIXELS {
+        return Err(Error::param(
+            "exemplar",
+            format!("{w}×{h}"),
+            format!(
+                "at most {} pixels",
+                crate::models::rsgf::MAX_EXEMPLAR_PIXELS
+            ),
+        ));
+    }
+    if let Some(i) = exemplar.data.iter().position(|v| !v.is_finite()) {
+        return Err(Error::param(
+            "exemplar",
+            format!("a non-finite value at pixel {}", i / c),
+            "finite values everywhere (fill or crop missing points first)",
+        ));
+    }
+    Ok(())
+}
+
 impl QuiltingModel {
     /// Prepares `exemplar` (1 to 4 channels, finite) with `params`, on up to `threads`
     /// threads (the result does not depend on them).
@@ -432,29 +462,8 @@ impl QuiltingModel {
         params: &QuiltingParams,
         threads: usize,
     ) -> Result<QuiltingModel> {
-        params.validate()?;
+        check_input(exemplar, params)?;
         let (w, h, c) = (exemplar.width, exemplar.height, exemplar.channels);
-        params.check_exemplar(w, h)?;
-        if !(1..=4).contains(&c) {
-            return Err(Error::param("exemplar channels", c, "1 to 4"));
-        }
-        if w * h > crate::models::rsgf::MAX_EXEMPLAR_PIXELS {
-            return Err(Error::param(
-                "exemplar",
-                format!("{w}×{h}"),
-                format!(
-                    "at most {} pixels",
-                    crate::models::rsgf::MAX_EXEMPLAR_PIXELS
-                ),
-            ));
-        }
-        if let Some(i) = exemplar.data.iter().position(|v| !v.is_finite()) {
-            return Err(Error::param(
-                "exemplar",
-                format!("a non-finite value at pixel {}", i / c),
-                "finite values everywhere (fill or crop missing points first)",
-            ));
-        }
         let (b, o, s) = (params.block_px, params.overlap_px, params.step());
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5155_494c_5449_4e47);
         let vert = fit_basis(exemplar, (b, o), params.dims, &mut rng);
