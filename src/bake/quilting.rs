@@ -52,8 +52,9 @@ impl QuiltingOptions {
 /// Whether a quilting bake of `ex` wraps by default: where blocks at bounded positions
 /// would show the exemplar's edges too seldom for the W1 or standard-deviation bar
 /// ([`crate::bake::rsgf::coverage_bias`]; on the 100² dried mud, 0.92 of the standard
-/// deviation at the default 56-px blocks), and the torus holds a block (the exemplar's sides at least a block and
-/// two overlaps) within [`crate::models::rsgf::MAX_EXEMPLAR_PIXELS`] once repeated.
+/// deviation at the default 56-px blocks), and the torus holds a block (the exemplar's
+/// sides at least a block and two overlaps) within
+/// [`crate::models::rsgf::MAX_EXEMPLAR_PIXELS`] once repeated.
 pub fn wrap_chosen(ex: &Raster, params: &QuiltingParams) -> bool {
     let b = params.block_px;
     ex.width.min(ex.height) >= b + 2 * params.overlap_px
