@@ -187,6 +187,10 @@ pub fn par_map_threads<T: Sync, U: Send>(
 /// Points per leaf of a [`KdTree`].
 const LEAF: usize = 12;
 
+/// A cell is skipped when its distance bound exceeds the k-th distance by this
+/// fraction: far above the f32 rounding between the bound's sum and a point's.
+const BOUND_MARGIN: f32 = 1e-4;
+
 /// A k-d tree over `n` points of `dim` f32 coordinates, for exact nearest-neighbour
 /// and range queries (squared Euclidean distance) with a filter on point indices, and
 /// approximate ones within a budget of points ([`KdTree::nearest_within_budget`]).
@@ -281,7 +285,7 @@ impl KdTree {
         while let Some(Reverse((bits, node, slot))) = heap.pop() {
             let bound = f32::from_bits(bits);
             let full = best.len() == k;
-            if full && (looked >= budget || bound > best[k - 1].0 * (1.0 + 1e-4)) {
+            if full && (looked >= budget || bound > best[k - 1].0 * (1.0 + BOUND_MARGIN)) {
                 break;
             }
             off.copy_from_slice(&offs[slot as usize * dim..][..dim]);
@@ -289,19 +293,7 @@ impl KdTree {
             loop {
                 match self.nodes[n] {
                     Node::Leaf { start, end } => {
-                        for t in start as usize..end as usize {
-                            let id = self.ids[t];
-                            let d = sq_dist(query, &self.points[t * dim..(t + 1) * dim]);
-                            if best.len() == k && !less(d, id, best[k - 1]) {
-                                continue;
-                            }
-                            if !keep(id) {
-                                continue;
-                            }
-                            let at = best.partition_point(|&b| less(b.0, b.1, (d, id)));
-                            best.insert(at, (d, id));
-                            best.truncate(k);
-                        }
+                        self.scan_leaf(start..end, query, k, &keep, &mut best);
                         looked += (end - start) as usize;
                         break;
                     }
@@ -321,7 +313,7 @@ impl KdTree {
                         let old = off[a];
                         off[a] = diff.abs().max(old);
                         let far_bound: f32 = off.iter().map(|o| o * o).sum();
-                        if best.len() < k || far_bound <= best[k - 1].0 * (1.0 + 1e-4) {
+                        if best.len() < k || far_bound <= best[k - 1].0 * (1.0 + BOUND_MARGIN) {
                             let slot = (offs.len() / dim) as u32;
                             offs.extend_from_slice(&off);
                             heap.push(Reverse((far_bound.to_bits(), far, slot)));
@@ -333,6 +325,31 @@ impl KdTree {
             }
         }
         best
+    }
+
+    /// Offers the points of leaf range `range` (tree order) to `best`, the `k` nearest
+    /// so far among those `keep` accepts, kept in [`less`] order.
+    fn scan_leaf(
+        &self,
+        range: std::ops::Range<u32>,
+        q: &[f32],
+        k: usize,
+        keep: &impl Fn(u32) -> bool,
+        best: &mut Vec<(f32, u32)>,
+    ) {
+        for t in range.start as usize..range.end as usize {
+            let id = self.ids[t];
+            let d = sq_dist(q, &self.points[t * self.dim..(t + 1) * self.dim]);
+            if best.len() == k && !less(d, id, best[k - 1]) {
+                continue;
+            }
+            if !keep(id) {
+                continue;
+            }
+            let at = best.partition_point(|&b| less(b.0, b.1, (d, id)));
+            best.insert(at, (d, id));
+            best.truncate(k);
+        }
     }
 
     /// The search below `node`. `off[a]` is the query's distance, along axis `a`, to
@@ -350,22 +367,7 @@ impl KdTree {
         off: &mut [f32],
     ) {
         match self.nodes[node] {
-            Node::Leaf { start, end } => {
-                for t in start as usize..end as usize {
-                    let id = self.ids[t];
-                    let d = sq_dist(q, &self.points[t * self.dim..(t + 1) * self.dim]);
-                    let full = best.len() == k;
-                    if full && !less(d, id, best[k - 1]) {
-                        continue;
-                    }
-                    if !keep(id) {
-                        continue;
-                    }
-                    let at = best.partition_point(|&b| less(b.0, b.1, (d, id)));
-                    best.insert(at, (d, id));
-                    best.truncate(k);
-                }
-            }
+            Node::Leaf { start, end } => self.scan_leaf(start..end, q, k, keep, best),
             Node::Split {
                 axis,
                 value,
@@ -384,7 +386,7 @@ impl KdTree {
                     let old = off[a];
                     off[a] = diff.abs().max(old);
                     let bound: f32 = off.iter().map(|o| o * o).sum();
-                    if best.len() < k || bound <= best[k - 1].0 * (1.0 + 1e-4) {
+                    if best.len() < k || bound <= best[k - 1].0 * (1.0 + BOUND_MARGIN) {
                         self.nearest_in(far as usize, q, k, keep, best, off);
                     }
                     off[a] = old;

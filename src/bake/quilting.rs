@@ -58,8 +58,14 @@ impl QuiltingOptions {
 pub fn wrap_chosen(ex: &Raster, params: &QuiltingParams) -> bool {
     let b = params.block_px;
     ex.width.min(ex.height) >= b + 2 * params.overlap_px
-        && (ex.width + b - 1) * (ex.height + b - 1) <= crate::models::rsgf::MAX_EXEMPLAR_PIXELS
+        && repeated_fits(ex, b)
         && crate::bake::rsgf::coverage_bias(ex, b).misses_a_bar()
+}
+
+/// Whether `ex` repeated by `block` − 1 px ([`wrapped_exemplar`]; a torus is no larger
+/// than the exemplar) stays within [`crate::models::rsgf::MAX_EXEMPLAR_PIXELS`].
+fn repeated_fits(ex: &Raster, block: usize) -> bool {
+    (ex.width + block - 1) * (ex.height + block - 1) <= crate::models::rsgf::MAX_EXEMPLAR_PIXELS
 }
 
 /// The largest ratio of the squared jump across an exemplar's own wrap (its last
@@ -138,7 +144,7 @@ pub fn bake(
     let ex = if wrap {
         let b = params.block_px;
         let side = |n: usize| n + b - 1;
-        if side(ex.width) * side(ex.height) > crate::models::rsgf::MAX_EXEMPLAR_PIXELS {
+        if !repeated_fits(ex, b) {
             return Err(Error::param(
                 "quilting wrap",
                 format!(
