@@ -30,7 +30,7 @@ use surftile::raster::Raster;
 use surftile::stats::structure::{
     DEFAULT_SEAM_CELL, SEAM_BAR, SEAM_NOISE_DRAWS, seam_any_phase, seam_noise, structure,
 };
-use surftile::stats::{psd_error, psd_error_even, wasserstein1_standardised};
+use surftile::stats::{psd_error, psd_error_even, value_figures};
 use surftile::stream::{Region, Surface};
 use texture_synthesis as ts;
 
@@ -291,24 +291,16 @@ fn run(args: &Args, path: &std::path::Path) -> Result<(), Box<dyn std::error::Er
     Ok(())
 }
 
-/// Worst per-channel W1, PSD error and |σ ratio − 1|, and the structure figures.
+/// Worst per-channel W1, PSD error and σ ratio ([`value_figures`]), and the structure
+/// figures.
 fn report(name: &str, method: &str, ex: &Raster, out: &Raster, cells: &[usize], time: String) {
     let s = structure(ex, out, None);
-    let (mut w1, mut psd, mut psd_even, mut sd) = (0.0f64, 0.0f64, 0.0f64, 1.0f64);
+    let (w1, sd) = value_figures(ex, out);
+    let (mut psd, mut psd_even) = (0.0f64, 0.0f64);
     for k in 0..ex.channels.min(out.channels) {
         let (a, b) = (ex.channel(k), out.channel(k));
-        w1 = w1.max(wasserstein1_standardised(&a, &b));
         psd = psd.max(psd_error(&a, &b));
         psd_even = psd_even.max(psd_error_even(&a));
-        let sd_of = |r: &Raster| {
-            let m = r.data.iter().map(|&v| v as f64).sum::<f64>() / r.data.len() as f64;
-            (r.data.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / r.data.len() as f64)
-                .sqrt()
-        };
-        let ratio = sd_of(&b) / sd_of(&a);
-        if (ratio - 1.0).abs() > (sd - 1.0).abs() {
-            sd = ratio;
-        }
     }
     // The worst seam over the default cell and each claimed grid (RSGF's block).
     let worst = cells

@@ -508,23 +508,7 @@ fn small_exemplars_wrap_and_keep_their_values() {
             .fill(&Region::new(-7000.0, 300.0, n, n), &mut out)
             .unwrap();
         let out = Raster::from_vec(n, n, c, out).unwrap();
-        let sd = |r: &Raster| {
-            let m = r.data.iter().map(|&v| v as f64).sum::<f64>() / r.data.len() as f64;
-            (r.data.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / r.data.len() as f64)
-                .sqrt()
-        };
-        (0..c).fold((0.0f64, 1.0f64), |(w1, worst), k| {
-            let (a, o) = (ex.channel(k), out.channel(k));
-            let ratio = sd(&o) / sd(&a);
-            (
-                w1.max(surftile::stats::wasserstein1_standardised(&a, &o)),
-                if (ratio - 1.0).abs() > (worst - 1.0).abs() {
-                    ratio
-                } else {
-                    worst
-                },
-            )
-        })
+        surftile::stats::value_figures(&ex, &out)
     };
     let (w1, sd) = figures(&wrapped);
     let (w1_bounded, sd_bounded) = figures(&bounded);

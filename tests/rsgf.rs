@@ -593,6 +593,65 @@ fn small_exemplars_wrap_and_keep_their_histogram() {
     assert!(!bias.misses_a_bar() && bias.w1 < 0.01, "{bias:?}");
 }
 
+/// Wrapping is for the values, and it costs coherence, so a bank wraps only where trial
+/// fills say it meets a value bar that reflected edges miss
+/// (`surftile::bake::rsgf::EdgeTrial`). ETR's 256² `ice01` is one whose coverage says
+/// wrap (W1 0.07), but whose wrapped synthesis misses as many bars as the reflected one
+/// (1024²: W1 0.102 and standard deviation 1.052 wrapped, 0.081 and 0.957 reflected). It
+/// stays reflected, and the reflected synthesis is the more coherent, by a figure the
+/// rule does not look at (512²: 0.299 against 0.363; bar: lower by at least 0.03).
+#[test]
+fn wrapping_that_meets_no_more_bars_is_not_taken() {
+    let name = "tests/data/etr-ice01.png";
+    let image = read_image(&repo(name), &ReadOptions::default()).unwrap();
+    let baker = Baker::builder()
+        .method(surftile::bank::Method::Rsgf)
+        .rsgf(RsgfOptions {
+            stochastic: true,
+            ..RsgfOptions::default()
+        })
+        .build()
+        .unwrap();
+    let (ex, _) = baker.preprocess(&image, name).unwrap();
+    let bank = baker.bake(&image, name, &mut |_| {}).unwrap();
+    let params = surftile::models::rsgf::check_bank(&bank, "test").unwrap();
+    let bias = coverage_bias(&ex, params.block_px);
+    assert!(
+        bias.misses_a_bar(),
+        "the coverage should say wrap: {bias:?}"
+    );
+    assert!(
+        params.reflect_edges && !params.wrap_edges,
+        "{}",
+        bank.header.bake
+    );
+    let (n, c) = (512, ex.channels);
+    let render = |surface: &dyn Surface| {
+        let mut out = vec![0.0f32; n * n * c];
+        surface
+            .fill(&Region::new(0.0, 0.0, n, n), &mut out)
+            .unwrap();
+        Raster::from_vec(n, n, c, out).unwrap()
+    };
+    let reflected = render(open(&bank, 0).unwrap().as_ref());
+    let wrapped = render(
+        &RsgfSurface::new(
+            &ex,
+            &RsgfParams {
+                wrap_edges: true,
+                reflect_edges: false,
+                ..params.clone()
+            },
+            0,
+        )
+        .unwrap(),
+    );
+    let coherence = |out: &Raster| surftile::stats::structure::coherence_completeness(&ex, out).0;
+    let (cr, cw) = (coherence(&reflected), coherence(&wrapped));
+    eprintln!("ice01 at {n}²: coherence {cr:.3} reflected, {cw:.3} wrapped");
+    assert!(cr + 0.03 <= cw, "reflected {cr:.3}, wrapped {cw:.3}");
+}
+
 /// With reflected edges (stochastic mode's default) blocks reach the exemplar's edges,
 /// and cuts keep mirrored pixels out of the output. In 512² of stochastic RSGF from the
 /// 100² dried-mud photo:
