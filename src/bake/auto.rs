@@ -308,6 +308,8 @@ fn trial_coherence(ex: &Raster, seed: u64, rsgf_from: Option<&Raster>) -> Option
             stochastic: true,
             ..Default::default()
         };
+        // The coverage's choice of edges, without the bake's trial fills
+        // (`bake::rsgf::EdgeTrial`): either layout is far from rpn on this figure.
         let params = options.params_for(from, (1, 0), (0, 1));
         crate::models::rsgf::RsgfModel::new(from, &params)
             .ok()?
