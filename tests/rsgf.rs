@@ -594,11 +594,11 @@ fn small_exemplars_wrap_and_keep_their_histogram() {
 }
 
 /// Wrapping is for the values, and it costs coherence, so a bank wraps only where trial
-/// fills say it meets a value bar that reflected edges miss
+/// fills say the wrapped layout misses fewer of the two value bars
 /// (`surftile::bake::rsgf::EdgeTrial`). ETR's 256² `ice01` is one whose coverage says
-/// wrap (W1 0.077, standard deviation 0.901), but whose wrapped synthesis misses as many
-/// bars as the reflected one
-/// (1024²: W1 0.102 and standard deviation 1.052 wrapped, 0.081 and 0.957 reflected). It
+/// wrap (W1 0.077, standard deviation 0.901), but whose wrapped synthesis misses more
+/// value bars than the reflected one (1024²: W1 0.102 and standard deviation 1.052
+/// wrapped, both missed; 0.081 and 0.957 reflected, W1 missed). It
 /// stays reflected, and the reflected synthesis is the more coherent, by a figure the
 /// rule does not look at (512²: 0.299 against 0.363; bar: lower by at least 0.03).
 #[test]

@@ -236,7 +236,7 @@ pub fn choose_stochastic(ex: &Raster, seed: u64, photo: bool) -> AutoChoice {
 /// px, which can wrap around an exemplar of `wrap` px a side (block + 4 borders,
 /// [`crate::models::rsgf::wrap_fits`]): `[1, 1]` where both sides hold a patch; else,
 /// along each side under `wrap`, the fewest k with k·side ≥ `wrap` and
-/// k·side − `patch` + 1 ≥ side, so that the repeats can wrap where the coverage asks it
+/// k·side − `patch` + 1 ≥ side, so that the repeats can wrap where the bake asks it
 /// and a patch can start at every phase of the exemplar (rule 4 of the module notes).
 pub fn torus_repeats(w: usize, h: usize, patch: usize, wrap: usize) -> [usize; 2] {
     if w.min(h) >= patch || w.min(h) == 0 {
@@ -270,7 +270,8 @@ const TRIAL_SIDE: usize = 128;
 /// realisation of the crop's centre (at most [`TRIAL_SIDE`]², every channel under the
 /// same random phases, each matched back to its histogram) and of a synthesis of the
 /// same size from the crop by the structured method: stochastic RSGF with the
-/// parameters `bake` gives it from `rsgf_from` (the exemplar, or its torus repeated
+/// parameters `bake` gives it from `rsgf_from`, but edges by the coverage alone,
+/// without the bake's trial fills (`rsgf_from`: the exemplar, or its torus repeated
 /// where it is small: the crop is taken of it as of the exemplar), else synth with its
 /// defaults. `None` if the structured trial cannot run.
 fn trial_coherence(ex: &Raster, seed: u64, rsgf_from: Option<&Raster>) -> Option<(f64, f64)> {
@@ -309,7 +310,10 @@ fn trial_coherence(ex: &Raster, seed: u64, rsgf_from: Option<&Raster>) -> Option
             ..Default::default()
         };
         // The coverage's choice of edges, without the bake's trial fills
-        // (`bake::rsgf::EdgeTrial`): either layout is far from rpn on this figure.
+        // (`bake::rsgf::EdgeTrial`): the layouts differ by 0.07–0.10 in coherence
+        // (docs/structure.md, "Trial fills decide"), where rpn's trial reads four
+        // to eight times RSGF's (1.02–2.24 against 0.18–0.28 on gimp-ice and the
+        // classic set's stone wall, text and sponge).
         let params = options.params_for(from, (1, 0), (0, 1));
         crate::models::rsgf::RsgfModel::new(from, &params)
             .ok()?

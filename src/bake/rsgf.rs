@@ -40,8 +40,9 @@ pub struct RsgfOptions {
     /// In stochastic mode, map output values so that their histogram is the exemplar's
     /// ([`histogram_map`]; default off: it costs coherence).
     pub histogram: bool,
-    /// In stochastic mode, how patches meet the exemplar's edges (default: by the
-    /// exemplar's [`coverage_bias`]).
+    /// In stochastic mode, how patches meet the exemplar's edges (default: reflected,
+    /// or wrapped where the exemplar's [`coverage_bias`] says they may wrap and the
+    /// bake's [`EdgeTrial`] agrees).
     pub edges: Edges,
     /// In stochastic mode with neither block nor border given: the window within which
     /// self-repetition should stay within [`REPEAT_BAR`]; the scaled block is capped
@@ -169,8 +170,9 @@ impl RsgfOptions {
             join: self.join,
             feather_px,
             histogram: None,
-            // A stochastic exemplar wraps where `edges` says so (auto: where bounded
-            // positions would miss its histogram and it can wrap); otherwise its
+            // A stochastic exemplar wraps where `edges` says so (auto, here: where
+            // bounded positions would miss its histogram and it can wrap; `bake`
+            // resolves auto by its `EdgeTrial` before it gets here); otherwise its
             // patches hang over mirrored edges, which only cuts keep out of the
             // output (a linear blend would show them across every overlap).
             reflect_edges: self.stochastic && self.join == Join::Cut && !wrap,
@@ -270,8 +272,8 @@ pub const COVERAGE_SD_BAR: f64 = 0.05;
 
 impl CoverageBias {
     /// Whether the coverage alone misses the W1 or the standard-deviation bar: blocks
-    /// should then wrap around the exemplar made periodic
-    /// ([`RsgfParams::wrap_edges`]), where every pixel is shown about equally.
+    /// may then wrap around the exemplar made periodic ([`RsgfParams::wrap_edges`]),
+    /// where every pixel is shown about equally, if the bake's [`EdgeTrial`] agrees.
     pub fn misses_a_bar(&self) -> bool {
         self.w1 >= COVERAGE_W1_BAR || (self.sd_ratio - 1.0).abs() >= COVERAGE_SD_BAR
     }
@@ -568,19 +570,21 @@ pub fn histogram_map(model: RsgfModel, ex: &Raster) -> Result<Option<Vec<Vec<[f3
 }
 
 /// The trial fills that choose a stochastic bank's edges where its [`coverage_bias`]
-/// says the blocks should wrap: the value figures ([`crate::stats::value_figures`]: W1
-/// and standard-deviation ratio) of a reflected and a wrapped synthesis, seed 0,
-/// [`EDGE_TRIAL_SIDE`]² at the origin.
+/// says the blocks may wrap: the value figures ([`crate::stats::value_figures`]: W1
+/// and standard-deviation ratio) of an unwrapped synthesis (reflected edges with cuts;
+/// bounded positions with a blend) and a wrapped one, seed 0, [`EDGE_TRIAL_SIDE`]² at
+/// the origin. The fills are not histogram-mapped (`--match-histogram` maps either
+/// layout's values afterwards).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EdgeTrial {
-    /// (W1, standard-deviation ratio) of the reflected layout.
+    /// (W1, standard-deviation ratio) of the unwrapped layout.
     pub reflected: (f64, f64),
     /// The same of the wrapped layout.
     pub wrapped: (f64, f64),
 }
 
 /// Side of [`EdgeTrial`]'s fills: the larger of issue 31's two outputs. Near a bar the
-/// figures of a small fill are noisy: the 128-px raspberries of the classic texture set,
+/// figures of a small fill are noisy: the 128-px berries of the classic texture set,
 /// reflected, read W1 0.058 on a 384² fill, 0.044 at 512² and 0.047 at 1024².
 pub const EDGE_TRIAL_SIDE: usize = 1024;
 
@@ -592,10 +596,11 @@ pub fn value_bars_missed((w1, sd_ratio): (f64, f64)) -> usize {
 }
 
 impl EdgeTrial {
-    /// Whether the bank wraps: only where the wrapped trial misses fewer value bars than
-    /// the reflected one. Wrapping is for the values, and it costs coherence: a patch
-    /// across the torus's seam is in no exemplar, and the cut that closes the torus
-    /// keeps features from both of its sides. On the 128-px raspberries of the classic
+    /// Whether the bank wraps: only where the wrapped trial misses fewer of the two value
+    /// bars than the unwrapped one (where the layouts trade one bar for the other, it
+    /// does not). Wrapping is for the values, and it costs coherence: a patch across the
+    /// torus's seam is in no exemplar, and the cut that closes the torus keeps features
+    /// from both of its sides. On the 128-px berries of the classic
     /// texture set, whose coverage predicted W1 0.066, wrapping read coherence 0.352
     /// against 0.254 reflected (1024²), where reflected already met both value bars
     /// (W1 0.047, standard deviation 0.985; docs/structure.md, "The classic texture
@@ -608,7 +613,7 @@ impl EdgeTrial {
     pub fn text(&self) -> String {
         let (r, w) = (self.reflected, self.wrapped);
         format!(
-            "edges by trial fills ({EDGE_TRIAL_SIDE}², seed 0), as the coverage says blocks may wrap: reflected W1 {:.3}, standard deviation {:.3}; wrapped {:.3}, {:.3} (bars {COVERAGE_W1_BAR} and ±{COVERAGE_SD_BAR}): {}",
+            "edges by trial fills ({EDGE_TRIAL_SIDE}², seed 0), as the coverage says blocks may wrap: unwrapped W1 {:.3}, standard deviation {:.3}; wrapped {:.3}, {:.3} (bars {COVERAGE_W1_BAR} and ±{COVERAGE_SD_BAR}): {}",
             r.0,
             r.1,
             w.0,
@@ -616,7 +621,7 @@ impl EdgeTrial {
             if self.wrap() {
                 "wrapped, which misses fewer bars"
             } else {
-                "reflected, as wrapping misses no fewer bars and costs coherence (pass --edges wrap to wrap)"
+                "not wrapped, as wrapping misses no fewer bars and costs coherence (pass --edges wrap to wrap)"
             }
         )
     }
@@ -709,9 +714,9 @@ pub(crate) fn bake(
         ));
         resolved.feather_px = Some(feather);
     }
-    // Where the coverage says the blocks should wrap, trial fills of both layouts
-    // decide: wrapping costs coherence, so it is kept only where it meets a value bar
-    // that the reflected layout misses.
+    // Where the coverage says the blocks may wrap, trial fills of both layouts decide:
+    // wrapping costs coherence, so it is kept only where the wrapped fill misses fewer
+    // of the two value bars.
     if options.stochastic
         && options.edges == Edges::Auto
         && resolved.params_for(ex, (1, 0), (0, 1)).wrap_edges
@@ -870,9 +875,9 @@ mod tests {
     use super::*;
 
     /// Known answers of the edge rule: a bank wraps only where the wrapped trial misses
-    /// fewer value bars than the reflected one.
+    /// fewer of the two value bars than the unwrapped one.
     #[test]
-    fn edges_wrap_only_where_wrapping_meets_a_bar_reflection_misses() {
+    fn edges_wrap_only_where_wrapping_misses_fewer_value_bars() {
         assert_eq!(value_bars_missed((0.049, 0.951)), 0);
         assert_eq!(value_bars_missed((0.05, 1.0)), 1);
         assert_eq!(value_bars_missed((0.01, 1.05)), 1);
@@ -883,11 +888,13 @@ mod tests {
         assert!(trial((0.064, 0.902), (0.029, 0.958)));
         // One bar bought.
         assert!(trial((0.064, 0.99), (0.03, 0.99)));
-        // Raspberries: reflected meets both already.
+        // Berries: reflected meets both already.
         assert!(!trial((0.044, 0.983), (0.016, 0.991)));
         // Peppers: both miss W1, wrapping nearer the bar is not enough.
         assert!(!trial((0.130, 0.968), (0.073, 0.966)));
         // Wrapping misses more.
         assert!(!trial((0.03, 0.99), (0.06, 0.99)));
+        // The layouts trade one bar for the other.
+        assert!(!trial((0.06, 0.99), (0.03, 0.93)));
     }
 }

@@ -68,8 +68,10 @@ pub enum Join {
 #[serde(rename_all = "lowercase")]
 pub enum Edges {
     /// Wrap where blocks at bounded positions would miss the exemplar's histogram
-    /// (`bake::rsgf::coverage_bias`) and the exemplar can wrap ([`wrap_fits`]); else
-    /// reflect (with cuts; blended patches keep to bounded positions).
+    /// (`bake::rsgf::coverage_bias`), the exemplar can wrap ([`wrap_fits`]) and, in a
+    /// bake, trial fills say the wrapped layout misses fewer value bars
+    /// (`bake::rsgf::EdgeTrial`); else reflect (with cuts; blended patches keep to
+    /// bounded positions).
     #[default]
     Auto,
     /// Patches hang over the exemplar's edges, mirrored ([`RsgfParams::reflect_edges`]).
@@ -135,7 +137,8 @@ pub struct RsgfParams {
     /// small exemplar are shown less than its middle (see docs/structure.md). On a
     /// torus p + u is uniform for every u. The bake turns it on in stochastic mode
     /// where blocks at bounded positions would miss the exemplar's histogram
-    /// (`bake::rsgf::coverage_bias`) and the exemplar can wrap ([`wrap_fits`]), or
+    /// (`bake::rsgf::coverage_bias`), the exemplar can wrap ([`wrap_fits`]) and trial
+    /// fills say wrapping misses fewer value bars (`bake::rsgf::EdgeTrial`), or
     /// where `--edges wrap` asks; banks that do not record it: off. Stochastic (unit
     /// lattice) only, not with `reflect_edges`, and with a ramp below the border (the
     /// torus's seams ramp as block edges do, whatever the join).
