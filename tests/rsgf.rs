@@ -593,6 +593,18 @@ fn small_exemplars_wrap_and_keep_their_histogram() {
     assert!(!bias.misses_a_bar() && bias.w1 < 0.01, "{bias:?}");
 }
 
+/// A baker of stochastic RSGF banks with every other option at its default.
+fn stochastic_baker() -> Baker {
+    Baker::builder()
+        .method(surftile::bank::Method::Rsgf)
+        .rsgf(RsgfOptions {
+            stochastic: true,
+            ..RsgfOptions::default()
+        })
+        .build()
+        .unwrap()
+}
+
 /// Wrapping is for the values, and it costs coherence, so a bank wraps only where trial
 /// fills say the wrapped layout misses fewer of the two value bars
 /// (`surftile::bake::rsgf::EdgeTrial`). ETR's 256² `ice01` is one whose coverage says
@@ -605,14 +617,7 @@ fn small_exemplars_wrap_and_keep_their_histogram() {
 fn wrapping_that_meets_no_more_bars_is_not_taken() {
     let name = "tests/data/etr-ice01.png";
     let image = read_image(&repo(name), &ReadOptions::default()).unwrap();
-    let baker = Baker::builder()
-        .method(surftile::bank::Method::Rsgf)
-        .rsgf(RsgfOptions {
-            stochastic: true,
-            ..RsgfOptions::default()
-        })
-        .build()
-        .unwrap();
+    let baker = stochastic_baker();
     let (ex, _) = baker.preprocess(&image, name).unwrap();
     let bank = baker.bake(&image, name, &mut |_| {}).unwrap();
     let params = surftile::models::rsgf::check_bank(&bank, "test").unwrap();
@@ -1040,15 +1045,7 @@ fn bad_rsgf_input_is_refused() {
         e.contains("no lattice") && e.contains("`stochastic`") && e.contains("`lattice`"),
         "{e}"
     );
-    let stochastic = Baker::builder()
-        .method(surftile::bank::Method::Rsgf)
-        .rsgf(RsgfOptions {
-            stochastic: true,
-            ..RsgfOptions::default()
-        })
-        .build()
-        .unwrap();
-    assert!(stochastic.bake(&noise, "ps-1", &mut |_| {}).is_ok());
+    assert!(stochastic_baker().bake(&noise, "ps-1", &mut |_| {}).is_ok());
     let both = Baker::builder()
         .method(surftile::bank::Method::Rsgf)
         .lattice((10, 0), (0, 10))
